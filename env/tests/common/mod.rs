@@ -1,0 +1,65 @@
+//! Helpers for the env tests: small scenes with fish placed by the test.
+#![allow(dead_code)]
+
+use deepfoids_env::config::Range;
+use deepfoids_env::{ConfigDirs, Env, Phase, Scene};
+use glam::Vec3;
+
+pub fn dirs() -> ConfigDirs {
+    ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"))
+}
+
+/// Scene `id` cut down to `n` fish of body scale exactly 1.0.
+pub fn scene(id: &str, n: usize) -> Scene {
+    let mut s = Scene::load(&dirs(), id, Phase::Pretrain).unwrap();
+    s.behaviours.truncate(1);
+    s.behaviours[0].count = n;
+    s.behaviours[0].body_scales = vec![(n, Range::Fixed(1.0))];
+    s
+}
+
+/// An env of `scene` with light preferences wide enough that light never pushes,
+/// no dominant fish, and chases never starting unless the test says so.
+pub fn calm_env(mut scene: Scene) -> Env {
+    scene.physics.chase_probability = 0.0;
+    let mut env = Env::new(scene, 7);
+    let w = env.world_mut();
+    for p in &mut w.light_pref {
+        *p = [0.0, 999.0];
+    }
+    for d in &mut w.dominant {
+        *d = false;
+    }
+    env
+}
+
+/// Put fish `i` at `p` heading `f` with speed `bl_per_s` body lengths per second.
+pub fn place(env: &mut Env, i: usize, p: Vec3, f: Vec3, bl_per_s: f32) {
+    let w = env.world_mut();
+    w.position[i] = p;
+    w.heading[i] = f.normalize();
+    w.roll[i] = 0.0;
+    w.speed[i] = bl_per_s * w.bl[i];
+}
+
+/// Park fish `i` far from everything else (in a corner region, level, slow).
+pub fn park(env: &mut Env, i: usize, slot: usize) {
+    let p = Vec3::new(
+        -1.2 + 0.6 * (slot % 5) as f32,
+        -2.6,
+        -1.1 + 0.5 * (slot / 5) as f32,
+    );
+    place(env, i, p, Vec3::X, 0.0);
+}
+
+/// Zero actions for every behaviour.
+pub fn zeros(env: &Env) -> Vec<Vec<f32>> {
+    env.behaviours()
+        .iter()
+        .map(|b| vec![0.0; b.count * 3])
+        .collect()
+}
+
+pub fn close(a: f32, b: f32, tol: f32) -> bool {
+    (a - b).abs() <= tol
+}

@@ -1,0 +1,194 @@
+//! Each reward term on hand-built scenes (SPEC §6). Seabream, BL = 0.34 m,
+//! d_sense = 1.02 m, k = 5, decision 0.1 s, pretraining weights; light and
+//! temperature never push (the helpers widen the light band; 21–22 °C is preferred).
+mod common;
+use common::*;
+use deepfoids_env::Chase;
+use glam::Vec3;
+
+const BC: usize = 0;
+const NC: usize = 1;
+const BD: usize = 2;
+const ND: usize = 3;
+const E: usize = 4;
+const M: usize = 5;
+const C: usize = 6;
+
+fn terms(env: &deepfoids_env::Env, i: usize) -> [f32; 7] {
+    env.output().behaviours[0].terms[i]
+}
+
+/// Two fish 0.5 m apart in mid-water, headings 30° apart:
+/// r_ND = 1.5 · (90 − 30)/90 = 1.0 for each; nothing else within range.
+#[test]
+fn neighbour_distance_term() {
+    let mut env = calm_env(scene("seabream_default", 2));
+    let c = Vec3::new(-0.25, -1.5, -0.2);
+    place(&mut env, 0, c, Vec3::Z, 0.2);
+    let f1 = Vec3::new(30f32.to_radians().sin(), 0.0, 30f32.to_radians().cos());
+    place(&mut env, 1, c + Vec3::new(0.5, 0.0, 0.0), f1, 0.2);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    for i in 0..2 {
+        let t = terms(&env, i);
+        assert!(close(t[ND], 1.0, 1e-3), "fish {i}: {t:?}");
+        assert_eq!(t[BD], 0.0);
+        assert_eq!(t[NC], 0.0);
+    }
+}
+
+/// A fish 0.5 m from the wall at x = 1.5, swimming along it:
+/// r_BD = −2 · (1.02 − 0.5)/1.02 = −1.019608.
+#[test]
+fn boundary_distance_term() {
+    let mut env = calm_env(scene("seabream_default", 1));
+    place(&mut env, 0, Vec3::new(1.0, -1.5, 0.0), Vec3::Z, 0.2);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    let t = terms(&env, 0);
+    assert!(close(t[BD], -1.019608, 1e-4), "{t:?}");
+    assert_eq!(t[BC], 0.0);
+}
+
+/// Two fish side by side 0.03 m apart (each 0.0476 m wide) overlap: N_hit = 1,
+/// r_NC = −0.5 each; a third fish far away has none.
+#[test]
+fn neighbour_collision_term() {
+    let mut env = calm_env(scene("seabream_default", 3));
+    let c = Vec3::new(0.0, -1.5, 0.0);
+    place(&mut env, 0, c, Vec3::Z, 0.2);
+    place(&mut env, 1, c + Vec3::new(0.03, 0.0, 0.0), Vec3::Z, 0.2);
+    place(&mut env, 2, Vec3::new(-1.0, -2.5, -1.0), Vec3::X, 0.2);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    assert_eq!(terms(&env, 0)[NC], -0.5);
+    assert_eq!(terms(&env, 1)[NC], -0.5);
+    assert_eq!(terms(&env, 2)[NC], 0.0);
+    assert_eq!(env.output().behaviours[0].new_collisions[..], [1, 1, 0]);
+    // The mild repulsion pushed them apart along x.
+    let gap = (env.world().position[1] - env.world().position[0]).x;
+    assert!(gap > 0.03, "gap {gap}");
+}
+
+/// Action (0.5, 0, 0.5): speed +0.5·4.1 = 2.05 BL/s over the decision, yaw 10°:
+/// r_E = −0.001 · 10 − 5 · 2.05 = −10.26. Level at ≥ 0.3 BL/s: r_M = +2.
+#[test]
+fn energy_and_movement_terms() {
+    let mut env = calm_env(scene("seabream_default", 1));
+    place(&mut env, 0, Vec3::new(0.0, -1.5, -0.5), Vec3::Z, 0.2);
+    env.observe_now();
+    let out = env.step(&[vec![0.5, 0.0, 0.5]]).unwrap();
+    let t = out.behaviours[0].terms[0];
+    assert!(close(t[E], -10.26, 2e-3), "{t:?}");
+    assert_eq!(t[M], 2.0);
+    // Slow (v0 = 0.2 BL/s < 0.3) and level: r_M = 0.
+    let mut env = calm_env(scene("seabream_default", 1));
+    place(&mut env, 0, Vec3::new(0.0, -1.5, -0.5), Vec3::Z, 0.2);
+    env.observe_now();
+    let t = env.step(&[vec![0.0, 0.0, 0.0]]).unwrap().behaviours[0].terms[0];
+    assert_eq!(t[M], 0.0);
+    assert!(close(t[E], 0.0, 1e-6));
+}
+
+/// Pitched 60° up (≥ θrt = 53°): r_M = −10.
+#[test]
+fn steep_pitch_is_penalised() {
+    let mut env = calm_env(scene("seabream_default", 1));
+    let f = Vec3::new(0.0, 60f32.to_radians().sin(), 60f32.to_radians().cos());
+    place(&mut env, 0, Vec3::new(0.0, -2.0, 0.0), f, 1.0);
+    env.observe_now();
+    let t = env.step(&zeros(&env)).unwrap().behaviours[0].terms[0];
+    assert_eq!(t[M], -10.0);
+}
+
+/// Chase: aggressor 0 swims at 0.2 BL/s straight at target 1, 0.8 m ahead, which
+/// swims away at 0.2 BL/s: r_C = 8 · 0.2 = 1.6 for the aggressor and
+/// −1 · (d̂_t · v) = −1 · (−0.2) = +0.2 for the target.
+#[test]
+fn chase_terms() {
+    let mut env = calm_env(scene("seabream_default", 2));
+    place(&mut env, 0, Vec3::new(0.0, -1.5, -0.4), Vec3::Z, 0.2);
+    place(&mut env, 1, Vec3::new(0.0, -1.5, 0.4), Vec3::Z, 0.2);
+    let w = env.world_mut();
+    w.dominant[0] = true;
+    w.chase[0] = Chase::Aggressor {
+        target: 1,
+        since: 0.0,
+    };
+    w.chase[1] = Chase::Target { aggressor: 0 };
+    env.observe_now();
+    let t = env.step(&zeros(&env)).unwrap().behaviours[0].terms.clone();
+    assert!(close(t[0][C], 1.6, 1e-4), "{:?}", t[0]);
+    assert!(close(t[1][C], 0.2, 1e-4), "{:?}", t[1]);
+}
+
+/// The aggressor touching its target earns +100 once, and the chase ends.
+#[test]
+fn catching_the_target() {
+    let mut env = calm_env(scene("seabream_default", 2));
+    place(&mut env, 0, Vec3::new(0.0, -1.5, 0.0), Vec3::Z, 0.2);
+    place(&mut env, 1, Vec3::new(0.0, -1.5, 0.3), Vec3::Z, 0.2);
+    let w = env.world_mut();
+    w.chase[0] = Chase::Aggressor {
+        target: 1,
+        since: 0.0,
+    };
+    w.chase[1] = Chase::Target { aggressor: 0 };
+    env.observe_now();
+    let t = env.step(&zeros(&env)).unwrap().behaviours[0].terms[0];
+    assert_eq!(t[C], 100.0);
+    assert_eq!(env.world().chase[0], Chase::None);
+    assert_eq!(env.world().chase[1], Chase::None);
+}
+
+/// Crossing the wall: r_BC = −300, terminated, respawned inside at v0, fresh frame stack.
+#[test]
+fn boundary_collision_terminates_and_respawns() {
+    let mut env = calm_env(scene("seabream_default", 1));
+    // 0.25 m from the wall at z = 1.5, nose at 0.08 m from it, full speed ahead.
+    place(&mut env, 0, Vec3::new(0.0, -1.5, 1.25), Vec3::Z, 2.7);
+    env.observe_now();
+    env.step(&[vec![1.0, 0.0, 0.0]]).unwrap();
+    let b = &env.output().behaviours[0];
+    assert!(b.terminated[0] && !b.truncated[0]);
+    assert_eq!(b.terms[0][BC], -300.0);
+    assert_eq!(b.rewards[0], -300.0);
+    let w = env.world();
+    let bl = w.bl[0];
+    assert!(env.cage().clearance(w.position[0]) > 0.0);
+    // Respawned with v0 and gliding since (no action): speed still ≈ 0.2 BL/s.
+    assert!(close(w.speed[0] / bl, 0.2, 1e-3), "{}", w.speed[0] / bl);
+    // A fresh stack: the two older frames are zeros.
+    let older = &b.grids[..2 * deepfoids_sensors::FRAME_LEN];
+    assert!(older.iter().all(|&x| x == 0.0));
+    assert!(
+        b.grids[2 * deepfoids_sensors::FRAME_LEN..]
+            .iter()
+            .any(|&x| x != 0.0)
+            || env.cage().clearance(w.position[0]) > 1.02
+    );
+}
+
+/// With max_episode_decisions = 3 a safe fish is truncated at decisions 3 and 6, not between.
+#[test]
+fn truncation_at_max_length() {
+    let mut s = scene("seabream_default", 1);
+    s.physics.max_episode_decisions = 3;
+    let mut env = calm_env(s);
+    place(&mut env, 0, Vec3::new(0.0, -1.5, -1.0), Vec3::Z, 0.0);
+    env.observe_now();
+    let mut flags = vec![];
+    for _ in 0..7 {
+        let out = env.step(&zeros(&env)).unwrap();
+        flags.push((
+            out.behaviours[0].truncated[0],
+            out.behaviours[0].terminated[0],
+        ));
+    }
+    let truncated: Vec<bool> = flags.iter().map(|f| f.0).collect();
+    assert_eq!(
+        truncated,
+        vec![false, false, true, false, false, true, false]
+    );
+    assert!(flags.iter().all(|f| !f.1));
+}

@@ -1,0 +1,648 @@
+//! The angular grid vision sensor (SPEC §5).
+//!
+//! A 34 × 20 grid over the fish's visual field, in its local frame (origin at
+//! the body centre, +z forward, +y up, +x to the fish's left — right-handed):
+//!
+//! * 34 azimuth columns of 10°, centred on the heading, from −170° (left,
+//!   column 0) to +170° (right, column 33); the 20° sector straight behind is blind.
+//!   Azimuth is measured positive to the fish's right: `az = atan2(−x, z)`.
+//! * 20 elevation rows of 9°, from +90° (up, row 0) to −90° (down, row 19):
+//!   `el = asin(y)`.
+//!
+//! Each cell holds 6 channels `[proximity, fish, net, surface, obstacle,
+//! chase partner]`: proximity is `1 − dist/d_sense` of the closest object seen
+//! in the cell within `d_sense` (0 if none), the other five the one-hot type of
+//! that object. A frame is laid out channel-major, `[C, H, W] = [6, 20, 34]`;
+//! three frames are stacked oldest first into `[18, 20, 34]`.
+//!
+//! How things are seen:
+//! * a neighbour is a sphere of its visual radius around its centre: it covers
+//!   every cell whose centre direction lies within its angular radius
+//!   `asin(r / dist)`, and always the cell its centre lies in (so a small, far
+//!   fish still shows); its distance is the centre distance;
+//! * boundaries and obstacles are found by casting each cell's centre ray.
+
+use crate::geometry::{BoundaryKind, Obstacle};
+use glam::{Mat3, Vec3};
+use std::f32::consts::{FRAC_PI_2, PI};
+
+/// Azimuth columns (W).
+pub const AZ_CELLS: usize = 34;
+/// Elevation rows (H).
+pub const EL_CELLS: usize = 20;
+/// Channels of one frame.
+pub const CHANNELS: usize = 6;
+/// Frames stacked into one observation.
+pub const STACK: usize = 3;
+/// Channels of a stacked observation.
+pub const STACKED_CHANNELS: usize = CHANNELS * STACK;
+/// Cells of one frame.
+pub const CELLS: usize = AZ_CELLS * EL_CELLS;
+/// Floats of one frame, `[6, 20, 34]`.
+pub const FRAME_LEN: usize = CHANNELS * CELLS;
+/// Floats of one stacked observation, `[18, 20, 34]`.
+pub const STACKED_LEN: usize = STACK * FRAME_LEN;
+
+/// Azimuth cell width (degrees).
+pub const AZ_STEP_DEG: f32 = 10.0;
+/// Elevation cell height (degrees).
+pub const EL_STEP_DEG: f32 = 9.0;
+/// Half-width of the seen azimuth range (degrees); beyond it is the blind sector.
+pub const AZ_LIMIT_DEG: f32 = AZ_STEP_DEG * AZ_CELLS as f32 / 2.0;
+
+/// The channels of a frame, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Channel {
+    Proximity = 0,
+    Fish = 1,
+    Net = 2,
+    Surface = 3,
+    Obstacle = 4,
+    ChasePartner = 5,
+}
+
+/// What the closest object seen in a cell is (its one-hot channel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum SeenKind {
+    Fish = 1,
+    Net = 2,
+    Surface = 3,
+    Obstacle = 4,
+    ChasePartner = 5,
+}
+
+impl From<BoundaryKind> for SeenKind {
+    fn from(k: BoundaryKind) -> Self {
+        match k {
+            BoundaryKind::Net => SeenKind::Net,
+            BoundaryKind::Surface => SeenKind::Surface,
+        }
+    }
+}
+
+/// The fixed geometry of the sensor: the centre direction of every cell.
+#[derive(Clone, Debug)]
+pub struct GridSensor {
+    // Cell centre directions in the local frame, structure of arrays for SIMD.
+    dx: [f32; CELLS],
+    dy: [f32; CELLS],
+    dz: [f32; CELLS],
+    /// Sine of the lower edge of each row (row 0 spans 81°–90°).
+    row_floor_sin: [f32; EL_CELLS],
+}
+
+impl Default for GridSensor {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl GridSensor {
+    pub fn new() -> Self {
+        let mut s = Self {
+            dx: [0.0; CELLS],
+            dy: [0.0; CELLS],
+            dz: [0.0; CELLS],
+            row_floor_sin: std::array::from_fn(|h| {
+                (90.0 - EL_STEP_DEG * (h as f32 + 1.0)).to_radians().sin()
+            }),
+        };
+        for h in 0..EL_CELLS {
+            for w in 0..AZ_CELLS {
+                let d = direction(
+                    Self::azimuth_deg(w).to_radians(),
+                    Self::elevation_deg(h).to_radians(),
+                );
+                let c = h * AZ_CELLS + w;
+                (s.dx[c], s.dy[c], s.dz[c]) = (d.x, d.y, d.z);
+            }
+        }
+        s
+    }
+
+    /// Centre azimuth of column `w` (degrees, positive to the right).
+    pub fn azimuth_deg(w: usize) -> f32 {
+        -AZ_LIMIT_DEG + AZ_STEP_DEG * (w as f32 + 0.5)
+    }
+
+    /// Centre elevation of row `h` (degrees, positive up).
+    pub fn elevation_deg(h: usize) -> f32 {
+        90.0 - EL_STEP_DEG * (h as f32 + 0.5)
+    }
+
+    /// Centre direction of cell `(h, w)` in the local frame.
+    pub fn cell_direction(&self, h: usize, w: usize) -> Vec3 {
+        let c = h * AZ_CELLS + w;
+        Vec3::new(self.dx[c], self.dy[c], self.dz[c])
+    }
+
+    /// The cell `(h, w)` a local unit direction falls in; `None` in the blind sector.
+    pub fn cell_of(dir: Vec3) -> Option<(usize, usize)> {
+        let (az, el) = angles(dir);
+        let az_deg = az.to_degrees();
+        if az_deg.abs() >= AZ_LIMIT_DEG {
+            return None;
+        }
+        let w = (((az_deg + AZ_LIMIT_DEG) / AZ_STEP_DEG) as usize).min(AZ_CELLS - 1);
+        let h = (((90.0 - el.to_degrees()) / EL_STEP_DEG).max(0.0) as usize).min(EL_CELLS - 1);
+        Some((h, w))
+    }
+}
+
+/// The row whose elevation band holds a direction with `sin el = y`.
+#[inline]
+fn row_of(sensor: &GridSensor, y: f32) -> usize {
+    // The edges' sines decrease with the row: the row is the number of edges above y.
+    sensor
+        .row_floor_sin
+        .partition_point(|&f| y < f)
+        .min(EL_CELLS - 1)
+}
+
+/// Local unit direction for azimuth `az` (positive right) and elevation `el` (radians).
+#[inline]
+pub fn direction(az: f32, el: f32) -> Vec3 {
+    let (sa, ca) = az.sin_cos();
+    let (se, ce) = el.sin_cos();
+    Vec3::new(-sa * ce, se, ca * ce)
+}
+
+/// Azimuth (positive right) and elevation of a local unit direction (radians).
+#[inline]
+pub fn angles(dir: Vec3) -> (f32, f32) {
+    (fast_atan2(-dir.x, dir.z), dir.y.clamp(-1.0, 1.0).asin())
+}
+
+/// `atan2(y, x)` by a degree-11 minimax polynomial for atan on [0, 1]
+/// (error < 1e−5 rad, 0.0006°; the sensor's cells are 10° wide). Used by every
+/// azimuth the sensor computes, so cell assignment is consistent.
+#[inline]
+pub fn fast_atan2(y: f32, x: f32) -> f32 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (lo, hi) = (ax.min(ay), ax.max(ay));
+    if hi == 0.0 {
+        return 0.0;
+    }
+    let a = lo / hi;
+    let a2 = a * a;
+    let mut r = a
+        * (0.999_977_26
+            + a2 * (-0.332_623_47
+                + a2 * (0.193_543_46
+                    + a2 * (-0.116_432_87 + a2 * (0.052_653_32 + a2 * -0.011_721_2)))));
+    if ay > ax {
+        r = FRAC_PI_2 - r;
+    }
+    if x < 0.0 {
+        r = PI - r;
+    }
+    if y < 0.0 { -r } else { r }
+}
+
+/// One frame under construction: per cell the distance and kind of the closest
+/// object seen so far. Lives on the stack; `clear` before each use.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    range: f32,
+    dist: [f32; CELLS],
+    kind: [u8; CELLS],
+}
+
+impl Frame {
+    /// An empty frame for sensing range `range` (m).
+    pub fn new(range: f32) -> Self {
+        Self {
+            range,
+            dist: [range; CELLS],
+            kind: [0; CELLS],
+        }
+    }
+
+    /// Forget everything and set the sensing range (m).
+    pub fn clear(&mut self, range: f32) {
+        self.range = range;
+        self.dist.fill(range);
+        self.kind.fill(0);
+    }
+
+    /// Sensing range (m).
+    pub fn range(&self) -> f32 {
+        self.range
+    }
+
+    #[inline]
+    fn mark(&mut self, c: usize, d: f32, kind: SeenKind) {
+        if d < self.dist[c] {
+            self.dist[c] = d;
+            self.kind[c] = kind as u8;
+        }
+    }
+
+    /// A sphere of radius `radius` whose centre is at `rel` in the local frame,
+    /// seen at its centre distance.
+    ///
+    /// Candidate cells come from bounds that need one `atan2` and no other
+    /// trigonometry: with `y = sin el`, `s = sin α = r/d`, `c = cos α`,
+    /// `sin(el ± α) = y·c ± cos el·s` picks the rows (against a table of the
+    /// row edges' sines) and `asin(x) ≤ x / √(1 − x²)`, `x = s / cos el_max`,
+    /// bounds the azimuth half-width; every candidate is then tested exactly.
+    pub fn add_sphere(&mut self, sensor: &GridSensor, rel: Vec3, radius: f32, kind: SeenKind) {
+        let d2 = rel.length_squared();
+        if d2 >= self.range * self.range || d2 <= 1e-12 {
+            return;
+        }
+        let d = d2.sqrt();
+        let dir = rel / d;
+        let az = fast_atan2(-dir.x, dir.z);
+        let limit = AZ_LIMIT_DEG.to_radians();
+        let step_az = AZ_STEP_DEG.to_radians();
+        let y = dir.y.clamp(-1.0, 1.0);
+        let cos_el = (1.0 - y * y).max(0.0).sqrt();
+        // The cell the centre falls in.
+        if az.abs() < limit {
+            let w = (((az + limit) / step_az) as usize).min(AZ_CELLS - 1);
+            self.mark(row_of(sensor, y) * AZ_CELLS + w, d, kind);
+        }
+        let s = (radius / d).min(1.0);
+        let c = (1.0 - s * s).max(0.0).sqrt();
+        // Rows: el_hi = el + α, el_lo = el − α (past a pole when its cosine turns negative).
+        let (sin_hi, cos_hi) = (y * c + cos_el * s, cos_el * c - y * s);
+        let (sin_lo, cos_lo) = (y * c - cos_el * s, cos_el * c + y * s);
+        let h_lo = if cos_hi < 0.0 {
+            0
+        } else {
+            row_of(sensor, sin_hi)
+        };
+        let h_hi = if cos_lo < 0.0 {
+            EL_CELLS - 1
+        } else {
+            row_of(sensor, sin_lo)
+        };
+        // Columns: half-width asin(t) ≤ t / √(1 − t²) with t = sin α / cos el_max,
+        // cos el_max = cos(|el| + α).
+        let cos_el_max = cos_el * c - y.abs() * s;
+        let t = if cos_el_max > 1e-6 {
+            s / cos_el_max
+        } else {
+            1.0
+        };
+        let half = if t < 0.999 {
+            t / (1.0 - t * t).sqrt()
+        } else {
+            2.0 * PI
+        };
+        let (w_lo, w_hi) = if half >= PI || az - half < -PI || az + half > PI {
+            // Near a pole, or wrapping round behind the fish: test every column.
+            (0, AZ_CELLS - 1)
+        } else {
+            let (az_lo, az_hi) = (az - half, az + half);
+            if az_hi < -limit || az_lo >= limit {
+                return;
+            }
+            let lo = ((az_lo + limit) / step_az).max(0.0) as usize;
+            let hi = ((az_hi + limit) / step_az) as usize;
+            (lo.min(AZ_CELLS - 1), hi.min(AZ_CELLS - 1))
+        };
+        let k = kind as u8;
+        for h in h_lo..=h_hi {
+            let row = h * AZ_CELLS;
+            for cell in row + w_lo..=row + w_hi {
+                let cos =
+                    sensor.dx[cell] * dir.x + sensor.dy[cell] * dir.y + sensor.dz[cell] * dir.z;
+                // Branch-free: which cells a neighbour covers is unpredictable.
+                let take = (cos >= c) & (d < self.dist[cell]);
+                self.dist[cell] = if take { d } else { self.dist[cell] };
+                self.kind[cell] = if take { k } else { self.kind[cell] };
+            }
+        }
+    }
+
+    /// A plane at distance `dist` (m, ≥ 0) whose unit normal — pointing from the
+    /// plane towards the fish — is `normal` in the local frame. Each cell's
+    /// centre ray hits it at `t = dist / (−c·n)` when `c·n < 0`.
+    pub fn add_plane(&mut self, sensor: &GridSensor, normal: Vec3, dist: f32, kind: SeenKind) {
+        if dist >= self.range {
+            return;
+        }
+        let k = kind as u8;
+        for c in 0..CELLS {
+            let dn = sensor.dx[c] * normal.x + sensor.dy[c] * normal.y + sensor.dz[c] * normal.z;
+            let t = dist / -dn;
+            if dn < 0.0 && t < self.dist[c] {
+                self.dist[c] = t;
+                self.kind[c] = k;
+            }
+        }
+    }
+
+    /// An obstacle, cast in the world frame from `origin` with the fish's
+    /// local-to-world rotation `rot`.
+    pub fn add_obstacle(
+        &mut self,
+        sensor: &GridSensor,
+        origin: Vec3,
+        rot: Mat3,
+        obstacle: &Obstacle,
+    ) {
+        if obstacle.distance(origin) >= self.range {
+            return;
+        }
+        for c in 0..CELLS {
+            let dir = rot * Vec3::new(sensor.dx[c], sensor.dy[c], sensor.dz[c]);
+            if let Some(t) = obstacle.ray_cast(origin, dir, self.dist[c]) {
+                self.dist[c] = t;
+                self.kind[c] = SeenKind::Obstacle as u8;
+            }
+        }
+    }
+
+    /// The kind seen in cell `(h, w)`, if any.
+    pub fn kind_at(&self, h: usize, w: usize) -> Option<SeenKind> {
+        match self.kind[h * AZ_CELLS + w] {
+            1 => Some(SeenKind::Fish),
+            2 => Some(SeenKind::Net),
+            3 => Some(SeenKind::Surface),
+            4 => Some(SeenKind::Obstacle),
+            5 => Some(SeenKind::ChasePartner),
+            _ => None,
+        }
+    }
+
+    /// Write the frame as `[6, 20, 34]` floats into `out` (length [`FRAME_LEN`]).
+    pub fn write(&self, out: &mut [f32]) {
+        let out = &mut out[..FRAME_LEN];
+        out.fill(0.0);
+        let inv = 1.0 / self.range;
+        for c in 0..CELLS {
+            let k = self.kind[c] as usize;
+            if k != 0 {
+                out[c] = 1.0 - self.dist[c] * inv;
+                out[k * CELLS + c] = 1.0;
+            }
+        }
+    }
+}
+
+/// Shift a stacked observation (`[18, 20, 34]`) one frame older and return the
+/// slot of the newest frame for the caller to write.
+pub fn push_frame(stack: &mut [f32]) -> &mut [f32] {
+    stack.copy_within(FRAME_LEN..STACKED_LEN, 0);
+    &mut stack[(STACK - 1) * FRAME_LEN..STACKED_LEN]
+}
+
+/// Clear the history of a stacked observation (a new episode): the older
+/// frames become zeros; returns the newest frame's slot.
+pub fn reset_stack(stack: &mut [f32]) -> &mut [f32] {
+    stack[..(STACK - 1) * FRAME_LEN].fill(0.0);
+    &mut stack[(STACK - 1) * FRAME_LEN..STACKED_LEN]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(frame: &[f32], ch: Channel, h: usize, w: usize) -> f32 {
+        frame[ch as usize * CELLS + h * AZ_CELLS + w]
+    }
+
+    fn covered(frame: &Frame) -> Vec<(usize, usize)> {
+        let mut v = vec![];
+        for h in 0..EL_CELLS {
+            for w in 0..AZ_CELLS {
+                if frame.kind_at(h, w).is_some() {
+                    v.push((h, w));
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn cell_centres_span_the_field_of_view() {
+        assert_eq!(GridSensor::azimuth_deg(0), -165.0);
+        assert_eq!(GridSensor::azimuth_deg(16), -5.0);
+        assert_eq!(GridSensor::azimuth_deg(17), 5.0);
+        assert_eq!(GridSensor::azimuth_deg(33), 165.0);
+        assert_eq!(GridSensor::elevation_deg(0), 85.5);
+        assert_eq!(GridSensor::elevation_deg(9), 4.5);
+        assert_eq!(GridSensor::elevation_deg(19), -85.5);
+        // +x is the fish's left: azimuth −90°.
+        let (az, el) = angles(Vec3::X);
+        assert!((az.to_degrees() + 90.0).abs() < 1e-4 && el.abs() < 1e-6);
+        assert_eq!(GridSensor::cell_of(Vec3::X), Some((10, 8)));
+        assert_eq!(GridSensor::cell_of(-Vec3::Z), None);
+        assert_eq!(GridSensor::cell_of(Vec3::Y).map(|c| c.0), Some(0));
+    }
+
+    /// A fish straight ahead at 1 m with d_sense 3 m: proximity 1 − 1/3 in the
+    /// four centre cells (columns 16–17 at ±5°, rows 9–10 at ±4.5°), type fish.
+    /// Angular radius asin(0.15/1) = 8.6° covers those four centres (6.7° off
+    /// axis) and none of the next ring (≥ 14.4°).
+    #[test]
+    fn fish_ahead_fills_the_centre_cells() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(3.0);
+        f.add_sphere(&sensor, Vec3::new(0.0, 0.0, 1.0), 0.15, SeenKind::Fish);
+        assert_eq!(covered(&f), vec![(9, 16), (9, 17), (10, 16), (10, 17)]);
+        let mut out = vec![0.0; FRAME_LEN];
+        f.write(&mut out);
+        for (h, w) in [(9, 16), (9, 17), (10, 16), (10, 17)] {
+            assert!((at(&out, Channel::Proximity, h, w) - (1.0 - 1.0 / 3.0)).abs() < 1e-6);
+            assert_eq!(at(&out, Channel::Fish, h, w), 1.0);
+            assert_eq!(at(&out, Channel::Net, h, w), 0.0);
+        }
+        assert_eq!(out.iter().filter(|&&x| x != 0.0).count(), 8);
+    }
+
+    /// The same fish at 0.5 m has angular radius 17.5° and covers more cells.
+    #[test]
+    fn a_nearer_fish_covers_more_cells() {
+        let sensor = GridSensor::new();
+        let mut far = Frame::new(3.0);
+        far.add_sphere(&sensor, Vec3::new(0.0, 0.0, 1.0), 0.15, SeenKind::Fish);
+        let mut near = Frame::new(3.0);
+        near.add_sphere(&sensor, Vec3::new(0.0, 0.0, 0.5), 0.15, SeenKind::Fish);
+        let (n_far, n_near) = (covered(&far).len(), covered(&near).len());
+        assert!(n_near > n_far, "{n_near} vs {n_far}");
+        // Within 17.5°: (±5, ±4.5) 6.7°, (±15, ±4.5) 15.6°, (±5, ±13.5) 14.4° → 4 + 4 + 4 = 12 cells.
+        assert_eq!(n_near, 12);
+    }
+
+    /// A tiny far fish still lands in the one cell its centre falls in.
+    #[test]
+    fn a_tiny_fish_marks_its_centre_cell() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(3.0);
+        let dir = direction(32.0f32.to_radians(), -20.0f32.to_radians());
+        f.add_sphere(&sensor, dir * 2.5, 0.01, SeenKind::Fish);
+        // az 32° → column (32 + 170) / 10 = 20; el −20° → row (90 + 20) / 9 = 12.
+        assert_eq!(covered(&f), vec![(12, 20)]);
+    }
+
+    /// Nothing is seen in the blind sector straight behind.
+    #[test]
+    fn the_blind_sector_stays_empty() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(3.0);
+        f.add_sphere(&sensor, Vec3::new(0.0, 0.0, -2.0), 0.05, SeenKind::Fish);
+        assert!(covered(&f).is_empty());
+    }
+
+    /// A plane 1 m to the left (+x) with normal pointing right (−x): cells on the
+    /// left half see it at 1/cos(angle to the normal); the right half sees nothing.
+    #[test]
+    fn a_wall_to_the_left_shows_on_the_left() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(3.0);
+        f.add_plane(&sensor, -Vec3::X, 1.0, SeenKind::Net);
+        let mut out = vec![0.0; FRAME_LEN];
+        f.write(&mut out);
+        // Straight left, horizon: column 7 or 8 (az −95°/−85°), row 9 (el 4.5°).
+        let c = sensor.cell_direction(9, 8);
+        let expected = 1.0 - (1.0 / c.x) / 3.0;
+        assert!((at(&out, Channel::Proximity, 9, 8) - expected).abs() < 1e-5);
+        assert_eq!(at(&out, Channel::Net, 9, 8), 1.0);
+        for h in 0..EL_CELLS {
+            for w in 17..AZ_CELLS {
+                assert_eq!(
+                    at(&out, Channel::Net, h, w),
+                    0.0,
+                    "right side cell ({h},{w})"
+                );
+            }
+        }
+    }
+
+    /// The surface 0.5 m above: seen in the top rows as surface, never below the horizon.
+    #[test]
+    fn the_surface_above_shows_as_surface() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(1.5);
+        f.add_plane(&sensor, -Vec3::Y, 0.5, SeenKind::Surface);
+        let mut out = vec![0.0; FRAME_LEN];
+        f.write(&mut out);
+        // Row 0 (el 85.5°) at the heading column: t = 0.5 / sin 85.5°.
+        let t = 0.5 / 85.5f32.to_radians().sin();
+        assert!((at(&out, Channel::Proximity, 0, 16) - (1.0 - t / 1.5)).abs() < 1e-5);
+        assert_eq!(at(&out, Channel::Surface, 0, 16), 1.0);
+        for h in 10..EL_CELLS {
+            for w in 0..AZ_CELLS {
+                assert_eq!(at(&out, Channel::Surface, h, w), 0.0);
+            }
+        }
+    }
+
+    /// The closer object wins a cell.
+    #[test]
+    fn closest_object_wins() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(3.0);
+        f.add_plane(&sensor, -Vec3::Z, 2.0, SeenKind::Net);
+        f.add_sphere(
+            &sensor,
+            Vec3::new(0.0, 0.0, 1.0),
+            0.15,
+            SeenKind::ChasePartner,
+        );
+        assert_eq!(f.kind_at(9, 16), Some(SeenKind::ChasePartner));
+        assert_eq!(f.kind_at(9, 14), Some(SeenKind::Net));
+    }
+
+    #[test]
+    fn an_obstacle_ahead_is_seen_as_obstacle() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(3.0);
+        let sphere = Obstacle::Sphere {
+            center: Vec3::new(0.0, -2.0, 2.0),
+            radius: 0.5,
+        };
+        f.add_obstacle(&sensor, Vec3::new(0.0, -2.0, 0.0), Mat3::IDENTITY, &sphere);
+        assert_eq!(f.kind_at(9, 16), Some(SeenKind::Obstacle));
+        let mut out = vec![0.0; FRAME_LEN];
+        f.write(&mut out);
+        let c = sensor.cell_direction(9, 16);
+        let t = sphere.ray_cast(Vec3::new(0.0, -2.0, 0.0), c, 3.0).unwrap();
+        assert!((at(&out, Channel::Proximity, 9, 16) - (1.0 - t / 3.0)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn fast_atan2_is_close() {
+        for k in 0..3600 {
+            let t = (k as f32 * 0.1 - 180.0).to_radians();
+            let (y, x) = (t.sin() * 2.5, t.cos() * 2.5);
+            assert!((fast_atan2(y, x) - y.atan2(x)).abs() < 1e-5, "{t}");
+        }
+        assert_eq!(fast_atan2(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn frames_stack_oldest_first() {
+        let mut stack = vec![0.0; STACKED_LEN];
+        for value in 1..=4 {
+            push_frame(&mut stack).fill(value as f32);
+        }
+        assert_eq!(stack[0], 2.0);
+        assert_eq!(stack[FRAME_LEN], 3.0);
+        assert_eq!(stack[2 * FRAME_LEN], 4.0);
+        reset_stack(&mut stack).fill(9.0);
+        assert_eq!(
+            (stack[0], stack[FRAME_LEN], stack[2 * FRAME_LEN]),
+            (0.0, 0.0, 9.0)
+        );
+    }
+
+    /// The bounded search marks exactly the cells a brute-force test of all
+    /// 680 cells marks, for any direction, distance and radius.
+    mod brute_force {
+        use super::*;
+        use proptest::prelude::*;
+
+        fn reference(
+            sensor: &GridSensor,
+            rel: Vec3,
+            radius: f32,
+            range: f32,
+        ) -> Vec<(usize, usize)> {
+            let d = rel.length();
+            if d >= range || d <= 1e-6 {
+                return vec![];
+            }
+            let dir = rel / d;
+            let cos_alpha = (1.0 - (radius / d).min(1.0).powi(2)).max(0.0).sqrt();
+            let centre = GridSensor::cell_of(dir);
+            let mut v = vec![];
+            for h in 0..EL_CELLS {
+                for w in 0..AZ_CELLS {
+                    if sensor.cell_direction(h, w).dot(dir) >= cos_alpha || centre == Some((h, w)) {
+                        v.push((h, w));
+                    }
+                }
+            }
+            v
+        }
+
+        proptest! {
+            #[test]
+            fn add_sphere_matches_brute_force(
+                az in -180.0f32..180.0, el in -90.0f32..90.0, d in 0.05f32..2.9, r in 0.0f32..1.5
+            ) {
+                let sensor = GridSensor::new();
+                let rel = direction(az.to_radians(), el.to_radians()) * d;
+                let mut f = Frame::new(3.0);
+                f.add_sphere(&sensor, rel, r, SeenKind::Fish);
+                let want = reference(&sensor, rel, r, 3.0);
+                // Cells on the exact angular boundary may differ by rounding: allow none
+                // except where the reference dot product is within 1e-5 of cos α.
+                let got = covered(&f);
+                let dir = rel.normalize();
+                let cos_alpha = (1.0 - (r / d).min(1.0).powi(2)).max(0.0).sqrt();
+                for cell in got.iter().filter(|c| !want.contains(c)).chain(want.iter().filter(|c| !got.contains(c))) {
+                    let dot = sensor.cell_direction(cell.0, cell.1).dot(dir);
+                    prop_assert!((dot - cos_alpha).abs() < 1e-5, "cell {:?} differs (dot {}, cos α {})", cell, dot, cos_alpha);
+                }
+            }
+        }
+    }
+}

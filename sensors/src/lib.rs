@@ -1,0 +1,17 @@
+//! The fish's eyes: an angular grid vision sensor (SPEC §5) and the geometry
+//! queries it needs — planes and obstacles to cast rays against, and a uniform
+//! spatial grid to find neighbours.
+//!
+//! This crate knows nothing of fish dynamics or learning; it takes positions,
+//! orientations and shapes and writes flat `f32` buffers.
+
+pub mod geometry;
+pub mod grid_sensor;
+pub mod spatial;
+
+pub use geometry::{Boundary, BoundaryKind, Obstacle, Plane};
+pub use grid_sensor::{
+    AZ_CELLS, CELLS, CHANNELS, Channel, EL_CELLS, FRAME_LEN, Frame, GridSensor, STACK,
+    STACKED_CHANNELS, STACKED_LEN, SeenKind, push_frame, reset_stack,
+};
+pub use spatial::SpatialGrid;

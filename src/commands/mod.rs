@@ -1,0 +1,40 @@
+//! One module per command.
+
+pub mod bench;
+pub mod scenes;
+pub mod sensor_view;
+pub mod simulate;
+
+use anyhow::{Result, bail};
+use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
+
+/// Load a scene with its reward weights; the error names the file and field.
+pub fn load_scene(dirs: &ConfigDirs, id: &str, phase: Phase) -> Result<Scene> {
+    Ok(Scene::load(dirs, id, phase)?)
+}
+
+/// The policy named on the command line.
+pub fn make_policy(name: &str, seed: u64, _env: &Env) -> Result<Box<dyn Policy>> {
+    match name {
+        "random" => Ok(Box::new(RandomPolicy { seed })),
+        other => bail!("unknown policy `{other}`; allowed: random"),
+    }
+}
+
+/// `deepfoids` without a command: simulate the coho default scene for 60 s.
+pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
+    eprintln!(
+        "no command given: simulating coho_default for 60 s with random actions (see --help for the commands)"
+    );
+    let args = crate::cli::SimulateArgs {
+        scene: crate::cli::SceneArgs {
+            scene: "coho_default".into(),
+            seed: 0,
+            phase: Phase::Pretrain,
+        },
+        policy: "random".into(),
+        seconds: 60.0,
+        out: None,
+    };
+    simulate::run(dirs, &args)
+}

@@ -1,0 +1,162 @@
+//! Integration tests of the `deepfoids` binary: the commands a user runs.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn deepfoids(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_deepfoids"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the binary runs")
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("deepfoids-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn scenes_lists_every_scene_with_density() {
+    let o = deepfoids(&["scenes"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    for id in [
+        "coho_default",
+        "yellowtail_default",
+        "seabream_default",
+        "three_species",
+        "density_sparse",
+        "density_dense",
+    ] {
+        assert!(t.contains(id), "{id} missing:\n{t}");
+    }
+    assert!(t.contains("14.706") && t.contains("0.594"), "{t}");
+}
+
+/// 2 s of seabream (k = 5, 0.1 s decisions): 21 snapshots (t = 0 and 20 decisions) × 10 fish.
+#[test]
+fn simulate_writes_trajectories() {
+    let out = temp("simulate");
+    let o = deepfoids(&[
+        "simulate",
+        "--scene",
+        "seabream_default",
+        "--seconds",
+        "2",
+        "--seed",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let csv = std::fs::read_to_string(out.join("trajectories.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t,fish,behaviour,x,y,z,dx,dy,dz,speed,bl")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 21 * 10);
+    for r in &rows {
+        assert_eq!(r.len(), 11);
+        assert_eq!(r[2], "seabream_regular");
+        let f: Vec<f32> = [3, 4, 5, 6, 7, 8, 9, 10]
+            .iter()
+            .map(|&i| r[i].parse().unwrap())
+            .collect();
+        let norm = (f[3] * f[3] + f[4] * f[4] + f[5] * f[5]).sqrt();
+        assert!((norm - 1.0).abs() < 1e-3, "heading is a unit vector: {r:?}");
+        assert!(
+            f[0].abs() < 1.5 && f[1] < 0.0 && f[1] > -3.0 && f[2].abs() < 1.5,
+            "inside the 3 m cube: {r:?}"
+        );
+        assert!((0.3..0.38).contains(&f[7]), "bl {r:?}");
+    }
+    assert_eq!(rows.last().unwrap()[0], "2.000");
+    // Same seed, same file.
+    let again = temp("simulate-again");
+    deepfoids(&[
+        "simulate",
+        "--scene",
+        "seabream_default",
+        "--seconds",
+        "2",
+        "--seed",
+        "4",
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        csv,
+        std::fs::read_to_string(again.join("trajectories.csv")).unwrap()
+    );
+    assert!(text(&o).contains("seabream_regular"));
+}
+
+#[test]
+fn sensor_view_writes_a_png() {
+    let out = temp("view").join("view.png");
+    let o = deepfoids(&[
+        "sensor-view",
+        "--scene",
+        "seabream_default",
+        "--fish",
+        "3",
+        "--step",
+        "5",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (1800, 560));
+    // Not blank: the black background of the grid and white margins both appear.
+    let dark = img.pixels().filter(|p| p.0.iter().all(|&c| c < 40)).count();
+    let white = img
+        .pixels()
+        .filter(|p| p.0.iter().all(|&c| c > 250))
+        .count();
+    assert!(
+        dark > 10_000 && white > 10_000,
+        "dark {dark}, white {white}"
+    );
+}
+
+#[test]
+fn an_unknown_scene_fails_with_the_list() {
+    let o = deepfoids(&["simulate", "--scene", "salmon"]);
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(
+        t.contains("unknown scene `salmon`") && t.contains("coho_default"),
+        "{t}"
+    );
+    assert_eq!(
+        t.lines().filter(|l| l.starts_with("error:")).count(),
+        1,
+        "one clear line: {t}"
+    );
+}
+
+#[test]
+fn an_unknown_policy_fails_clearly() {
+    let o = deepfoids(&[
+        "simulate",
+        "--scene",
+        "seabream_default",
+        "--policy",
+        "genius",
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("unknown policy `genius`"), "{}", text(&o));
+}
