@@ -139,26 +139,20 @@ impl GridSensor {
     }
 
     /// The cell `(h, w)` a local unit direction falls in; `None` in the blind sector.
-    pub fn cell_of(dir: Vec3) -> Option<(usize, usize)> {
-        let (az, el) = angles(dir);
-        let az_deg = az.to_degrees();
-        if az_deg.abs() >= AZ_LIMIT_DEG {
+    pub fn cell_of(&self, dir: Vec3) -> Option<(usize, usize)> {
+        let az = fast_atan2(-dir.x, dir.z);
+        let limit = AZ_LIMIT_DEG.to_radians();
+        if az.abs() >= limit {
             return None;
         }
-        let w = (((az_deg + AZ_LIMIT_DEG) / AZ_STEP_DEG) as usize).min(AZ_CELLS - 1);
-        let h = (((90.0 - el.to_degrees()) / EL_STEP_DEG).max(0.0) as usize).min(EL_CELLS - 1);
-        Some((h, w))
+        let w = (((az + limit) / AZ_STEP_DEG.to_radians()) as usize).min(AZ_CELLS - 1);
+        let h: usize = self
+            .row_floor_sin
+            .iter()
+            .map(|&e| (dir.y < e) as usize)
+            .sum();
+        Some((h.min(EL_CELLS - 1), w))
     }
-}
-
-/// The row whose elevation band holds a direction with `sin el = y`.
-#[inline]
-fn row_of(sensor: &GridSensor, y: f32) -> usize {
-    // The edges' sines decrease with the row: the row is the number of edges above y.
-    sensor
-        .row_floor_sin
-        .partition_point(|&f| y < f)
-        .min(EL_CELLS - 1)
 }
 
 /// Local unit direction for azimuth `az` (positive right) and elevation `el` (radians).
@@ -180,25 +174,75 @@ pub fn angles(dir: Vec3) -> (f32, f32) {
 /// azimuth the sensor computes, so cell assignment is consistent.
 #[inline]
 pub fn fast_atan2(y: f32, x: f32) -> f32 {
+    // Branch-free (selects only), so loops over many directions vectorise.
     let (ax, ay) = (x.abs(), y.abs());
     let (lo, hi) = (ax.min(ay), ax.max(ay));
-    if hi == 0.0 {
-        return 0.0;
-    }
-    let a = lo / hi;
+    let a = lo / hi.max(f32::MIN_POSITIVE);
     let a2 = a * a;
-    let mut r = a
+    let r = a
         * (0.999_977_26
             + a2 * (-0.332_623_47
                 + a2 * (0.193_543_46
                     + a2 * (-0.116_432_87 + a2 * (0.052_653_32 + a2 * -0.011_721_2)))));
-    if ay > ax {
-        r = FRAC_PI_2 - r;
-    }
-    if x < 0.0 {
-        r = PI - r;
-    }
+    let r = if ay > ax { FRAC_PI_2 - r } else { r };
+    let r = if x < 0.0 { PI - r } else { r };
     if y < 0.0 { -r } else { r }
+}
+
+/// Spheres set up together by [`Frame::add_spheres`].
+pub const SPHERE_BATCH: usize = 64;
+
+/// Up to [`SPHERE_BATCH`] spheres (relative centre in the local frame, radius,
+/// kind), structure of arrays. Lives on the stack.
+#[derive(Clone, Debug)]
+pub struct SphereBatch {
+    x: [f32; SPHERE_BATCH],
+    y: [f32; SPHERE_BATCH],
+    z: [f32; SPHERE_BATCH],
+    r: [f32; SPHERE_BATCH],
+    kind: [u8; SPHERE_BATCH],
+    len: usize,
+}
+
+impl Default for SphereBatch {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SphereBatch {
+    pub fn new() -> Self {
+        Self {
+            x: [0.0; SPHERE_BATCH],
+            y: [0.0; SPHERE_BATCH],
+            z: [0.0; SPHERE_BATCH],
+            r: [0.0; SPHERE_BATCH],
+            kind: [0; SPHERE_BATCH],
+            len: 0,
+        }
+    }
+
+    /// Add a sphere; returns `true` when the batch is now full.
+    #[inline]
+    pub fn push(&mut self, rel: Vec3, radius: f32, kind: SeenKind) -> bool {
+        let i = self.len;
+        (self.x[i], self.y[i], self.z[i], self.r[i], self.kind[i]) =
+            (rel.x, rel.y, rel.z, radius, kind as u8);
+        self.len += 1;
+        self.len == SPHERE_BATCH
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
 }
 
 /// One frame under construction: per cell the distance and kind of the closest
@@ -232,89 +276,151 @@ impl Frame {
         self.range
     }
 
-    #[inline]
-    fn mark(&mut self, c: usize, d: f32, kind: SeenKind) {
-        if d < self.dist[c] {
-            self.dist[c] = d;
-            self.kind[c] = kind as u8;
-        }
+    /// A sphere of radius `radius` whose centre is at `rel` in the local frame,
+    /// seen at its centre distance. (A batch of one: see [`Frame::add_spheres`].)
+    pub fn add_sphere(&mut self, sensor: &GridSensor, rel: Vec3, radius: f32, kind: SeenKind) {
+        let mut batch = SphereBatch::new();
+        batch.push(rel, radius, kind);
+        self.add_spheres(sensor, &batch);
     }
 
-    /// A sphere of radius `radius` whose centre is at `rel` in the local frame,
-    /// seen at its centre distance.
+    /// Spheres (neighbours) in the local frame, in order; each covers the cells
+    /// whose centre direction lies within its angular radius `asin(r/d)` and the
+    /// cell its centre falls in, at its centre distance `d`.
     ///
-    /// Candidate cells come from bounds that need one `atan2` and no other
-    /// trigonometry: with `y = sin el`, `s = sin α = r/d`, `c = cos α`,
+    /// Candidate cells come from bounds that need no trigonometry but one
+    /// polynomial `atan2`: with `y = sin el`, `s = sin α = r/d`, `c = cos α`,
     /// `sin(el ± α) = y·c ± cos el·s` picks the rows (against a table of the
     /// row edges' sines) and `asin(x) ≤ x / √(1 − x²)`, `x = s / cos el_max`,
     /// bounds the azimuth half-width; every candidate is then tested exactly.
-    pub fn add_sphere(&mut self, sensor: &GridSensor, rel: Vec3, radius: f32, kind: SeenKind) {
-        let d2 = rel.length_squared();
-        if d2 >= self.range * self.range || d2 <= 1e-12 {
-            return;
+    /// The set-up runs as loops over the whole batch, which vectorise.
+    pub fn add_spheres(&mut self, sensor: &GridSensor, batch: &SphereBatch) {
+        let n = batch.len;
+        let range2 = self.range * self.range;
+        let (mut d, mut ux, mut uy, mut uz) = (
+            [0f32; SPHERE_BATCH],
+            [0f32; SPHERE_BATCH],
+            [0f32; SPHERE_BATCH],
+            [0f32; SPHERE_BATCH],
+        );
+        let (mut az, mut cos_a, mut half) = (
+            [0f32; SPHERE_BATCH],
+            [0f32; SPHERE_BATCH],
+            [0f32; SPHERE_BATCH],
+        );
+        let (mut sin_hi, mut sin_lo) = ([0f32; SPHERE_BATCH], [0f32; SPHERE_BATCH]);
+        let mut valid = [false; SPHERE_BATCH];
+        for i in 0..n {
+            let d2 = batch.x[i] * batch.x[i] + batch.y[i] * batch.y[i] + batch.z[i] * batch.z[i];
+            valid[i] = d2 < range2 && d2 > 1e-12;
+            let di = d2.max(1e-12).sqrt();
+            let inv = 1.0 / di;
+            d[i] = di;
+            (ux[i], uy[i], uz[i]) = (batch.x[i] * inv, batch.y[i] * inv, batch.z[i] * inv);
         }
-        let d = d2.sqrt();
-        let dir = rel / d;
-        let az = fast_atan2(-dir.x, dir.z);
+        for i in 0..n {
+            az[i] = fast_atan2(-ux[i], uz[i]);
+        }
+        for i in 0..n {
+            let y = uy[i].clamp(-1.0, 1.0);
+            let cos_el = (1.0 - y * y).max(0.0).sqrt();
+            let s = (batch.r[i] / d[i]).min(1.0);
+            let c = (1.0 - s * s).max(0.0).sqrt();
+            cos_a[i] = c;
+            // Rows: el ± α; past a pole (cosine < 0) the band reaches it.
+            let (cos_hi, cos_lo) = (cos_el * c - y * s, cos_el * c + y * s);
+            sin_hi[i] = if cos_hi < 0.0 {
+                2.0
+            } else {
+                y * c + cos_el * s
+            };
+            sin_lo[i] = if cos_lo < 0.0 {
+                -2.0
+            } else {
+                y * c - cos_el * s
+            };
+            // Columns: cos el_max = cos(|el| + α).
+            let cos_el_max = cos_el * c - y.abs() * s;
+            let t = if cos_el_max > 1e-6 {
+                s / cos_el_max
+            } else {
+                1.0
+            };
+            half[i] = if t < 0.999 {
+                t / (1.0 - t * t).max(1e-12).sqrt()
+            } else {
+                2.0 * PI
+            };
+        }
+        let (mut row_c, mut row_hi, mut row_lo) = (
+            [0u8; SPHERE_BATCH],
+            [0u8; SPHERE_BATCH],
+            [0u8; SPHERE_BATCH],
+        );
+        for &edge in &sensor.row_floor_sin {
+            for i in 0..n {
+                row_c[i] += (uy[i] < edge) as u8;
+                row_hi[i] += (sin_hi[i] < edge) as u8;
+                row_lo[i] += (sin_lo[i] < edge) as u8;
+            }
+        }
         let limit = AZ_LIMIT_DEG.to_radians();
         let step_az = AZ_STEP_DEG.to_radians();
-        let y = dir.y.clamp(-1.0, 1.0);
-        let cos_el = (1.0 - y * y).max(0.0).sqrt();
-        // The cell the centre falls in.
-        if az.abs() < limit {
-            let w = (((az + limit) / step_az) as usize).min(AZ_CELLS - 1);
-            self.mark(row_of(sensor, y) * AZ_CELLS + w, d, kind);
-        }
-        let s = (radius / d).min(1.0);
-        let c = (1.0 - s * s).max(0.0).sqrt();
-        // Rows: el_hi = el + α, el_lo = el − α (past a pole when its cosine turns negative).
-        let (sin_hi, cos_hi) = (y * c + cos_el * s, cos_el * c - y * s);
-        let (sin_lo, cos_lo) = (y * c - cos_el * s, cos_el * c + y * s);
-        let h_lo = if cos_hi < 0.0 {
-            0
-        } else {
-            row_of(sensor, sin_hi)
-        };
-        let h_hi = if cos_lo < 0.0 {
-            EL_CELLS - 1
-        } else {
-            row_of(sensor, sin_lo)
-        };
-        // Columns: half-width asin(t) ≤ t / √(1 − t²) with t = sin α / cos el_max,
-        // cos el_max = cos(|el| + α).
-        let cos_el_max = cos_el * c - y.abs() * s;
-        let t = if cos_el_max > 1e-6 {
-            s / cos_el_max
-        } else {
-            1.0
-        };
-        let half = if t < 0.999 {
-            t / (1.0 - t * t).sqrt()
-        } else {
-            2.0 * PI
-        };
-        let (w_lo, w_hi) = if half >= PI || az - half < -PI || az + half > PI {
-            // Near a pole, or wrapping round behind the fish: test every column.
-            (0, AZ_CELLS - 1)
-        } else {
-            let (az_lo, az_hi) = (az - half, az + half);
-            if az_hi < -limit || az_lo >= limit {
-                return;
+        let col = |a: f32| ((a + limit) / step_az).clamp(0.0, (AZ_CELLS - 1) as f32) as usize;
+        let none = (1, 0);
+        for i in 0..n {
+            if !valid[i] {
+                continue;
             }
-            let lo = ((az_lo + limit) / step_az).max(0.0) as usize;
-            let hi = ((az_hi + limit) / step_az) as usize;
-            (lo.min(AZ_CELLS - 1), hi.min(AZ_CELLS - 1))
-        };
-        let k = kind as u8;
-        for h in h_lo..=h_hi {
-            let row = h * AZ_CELLS;
-            for cell in row + w_lo..=row + w_hi {
-                let cos =
-                    sensor.dx[cell] * dir.x + sensor.dy[cell] * dir.y + sensor.dz[cell] * dir.z;
-                // Branch-free: which cells a neighbour covers is unpredictable.
-                let take = (cos >= c) & (d < self.dist[cell]);
-                self.dist[cell] = if take { d } else { self.dist[cell] };
-                self.kind[cell] = if take { k } else { self.kind[cell] };
+            let (di, k) = (d[i], batch.kind[i]);
+            // The cell the centre falls in.
+            if az[i].abs() < limit {
+                let c = (row_c[i] as usize).min(EL_CELLS - 1) * AZ_CELLS + col(az[i]);
+                if di < self.dist[c] {
+                    self.dist[c] = di;
+                    self.kind[c] = k;
+                }
+            }
+            let h_lo = (row_hi[i] as usize).min(EL_CELLS - 1);
+            let h_hi = (row_lo[i] as usize).min(EL_CELLS - 1);
+            // Column ranges; a range wrapping past ±180° (behind the fish) splits in two.
+            let (main, wrapped) = if half[i] >= PI {
+                ((0, AZ_CELLS - 1), none) // around a pole: every column
+            } else {
+                let (az_lo, az_hi) = (az[i] - half[i], az[i] + half[i]);
+                let main = if az_hi < -limit || az_lo >= limit {
+                    none
+                } else {
+                    (col(az_lo), col(az_hi))
+                };
+                let wrapped = if az_hi > PI {
+                    let end = az_hi - 2.0 * PI;
+                    if end >= -limit { (0, col(end)) } else { none }
+                } else if az_lo < -PI {
+                    let start = az_lo + 2.0 * PI;
+                    if start < limit {
+                        (col(start), AZ_CELLS - 1)
+                    } else {
+                        none
+                    }
+                } else {
+                    none
+                };
+                (main, wrapped)
+            };
+            let (dx, dy, dz, c) = (ux[i], uy[i], uz[i], cos_a[i]);
+            for (w_lo, w_hi) in [main, wrapped] {
+                for h in h_lo..=h_hi {
+                    let row = h * AZ_CELLS;
+                    for cell in row + w_lo..row + w_hi + 1 {
+                        let cos =
+                            sensor.dx[cell] * dx + sensor.dy[cell] * dy + sensor.dz[cell] * dz;
+                        // Branch-free: which cells a neighbour covers is unpredictable.
+                        let take = (cos >= c) & (di < self.dist[cell]);
+                        self.dist[cell] = if take { di } else { self.dist[cell] };
+                        self.kind[cell] = if take { k } else { self.kind[cell] };
+                    }
+                }
             }
         }
     }
@@ -373,13 +479,20 @@ impl Frame {
     /// Write the frame as `[6, 20, 34]` floats into `out` (length [`FRAME_LEN`]).
     pub fn write(&self, out: &mut [f32]) {
         let out = &mut out[..FRAME_LEN];
-        out.fill(0.0);
         let inv = 1.0 / self.range;
+        let (prox, types) = out.split_at_mut(CELLS);
         for c in 0..CELLS {
-            let k = self.kind[c] as usize;
-            if k != 0 {
-                out[c] = 1.0 - self.dist[c] * inv;
-                out[k * CELLS + c] = 1.0;
+            prox[c] = if self.kind[c] != 0 {
+                1.0 - self.dist[c] * inv
+            } else {
+                0.0
+            };
+        }
+        // One pass per type channel: branch-free and vectorisable.
+        for (k, channel) in types.chunks_exact_mut(CELLS).enumerate() {
+            let k = k as u8 + 1;
+            for c in 0..CELLS {
+                channel[c] = (self.kind[c] == k) as u8 as f32;
             }
         }
     }
@@ -431,9 +544,12 @@ mod tests {
         // +x is the fish's left: azimuth −90°.
         let (az, el) = angles(Vec3::X);
         assert!((az.to_degrees() + 90.0).abs() < 1e-4 && el.abs() < 1e-6);
-        assert_eq!(GridSensor::cell_of(Vec3::X), Some((10, 8)));
-        assert_eq!(GridSensor::cell_of(-Vec3::Z), None);
-        assert_eq!(GridSensor::cell_of(Vec3::Y).map(|c| c.0), Some(0));
+        let sensor = GridSensor::new();
+        // Centre of column 8 (−85°) and row 10 (−4.5°).
+        let left = direction((-85f32).to_radians(), (-4.5f32).to_radians());
+        assert_eq!(sensor.cell_of(left), Some((10, 8)));
+        assert_eq!(sensor.cell_of(-Vec3::Z), None);
+        assert_eq!(sensor.cell_of(Vec3::Y).map(|c| c.0), Some(0));
     }
 
     /// A fish straight ahead at 1 m with d_sense 3 m: proximity 1 − 1/3 in the
@@ -611,7 +727,7 @@ mod tests {
             }
             let dir = rel / d;
             let cos_alpha = (1.0 - (radius / d).min(1.0).powi(2)).max(0.0).sqrt();
-            let centre = GridSensor::cell_of(dir);
+            let centre = sensor.cell_of(dir);
             let mut v = vec![];
             for h in 0..EL_CELLS {
                 for w in 0..AZ_CELLS {
@@ -624,6 +740,27 @@ mod tests {
         }
 
         proptest! {
+            /// A batch gives exactly the frame of the same spheres added one by one.
+            #[test]
+            fn a_batch_equals_spheres_one_by_one(
+                spheres in prop::collection::vec((-1.6f32..1.6, -1.6f32..1.6, -1.6f32..1.6, 0.0f32..0.4, any::<bool>()), 1..150)
+            ) {
+                let sensor = GridSensor::new();
+                let (mut one, mut many) = (Frame::new(1.5), Frame::new(1.5));
+                let mut batch = SphereBatch::new();
+                for &(x, y, z, r, partner) in &spheres {
+                    let kind = if partner { SeenKind::ChasePartner } else { SeenKind::Fish };
+                    one.add_sphere(&sensor, Vec3::new(x, y, z), r, kind);
+                    if batch.push(Vec3::new(x, y, z), r, kind) {
+                        many.add_spheres(&sensor, &batch);
+                        batch.clear();
+                    }
+                }
+                many.add_spheres(&sensor, &batch);
+                prop_assert_eq!(&one.dist[..], &many.dist[..]);
+                prop_assert_eq!(&one.kind[..], &many.kind[..]);
+            }
+
             #[test]
             fn add_sphere_matches_brute_force(
                 az in -180.0f32..180.0, el in -90.0f32..90.0, d in 0.05f32..2.9, r in 0.0f32..1.5

@@ -11,7 +11,7 @@ pub mod spatial;
 
 pub use geometry::{Boundary, BoundaryKind, Obstacle, Plane};
 pub use grid_sensor::{
-    AZ_CELLS, CELLS, CHANNELS, Channel, EL_CELLS, FRAME_LEN, Frame, GridSensor, STACK,
-    STACKED_CHANNELS, STACKED_LEN, SeenKind, push_frame, reset_stack,
+    AZ_CELLS, CELLS, CHANNELS, Channel, EL_CELLS, FRAME_LEN, Frame, GridSensor, SPHERE_BATCH,
+    STACK, STACKED_CHANNELS, STACKED_LEN, SeenKind, SphereBatch, push_frame, reset_stack,
 };
 pub use spatial::SpatialGrid;

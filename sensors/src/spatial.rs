@@ -6,7 +6,7 @@
 //! its candidates in the same order whatever the thread count — sums over
 //! neighbours come out bit-identical.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// A uniform grid over an axis-aligned box, holding item indices by cell.
 #[derive(Clone, Debug)]
@@ -18,6 +18,9 @@ pub struct SpatialGrid {
     /// `cell_start[c]..cell_start[c + 1]` indexes `entries` for cell `c`.
     cell_start: Vec<u32>,
     entries: Vec<u32>,
+    /// `(x, y, z, w)` of each entry, in entry order: candidates are read from
+    /// contiguous memory; `w` is a per-item value the caller chose (a radius).
+    points: Vec<Vec4>,
     cell_of: Vec<u32>,
 }
 
@@ -44,6 +47,7 @@ impl SpatialGrid {
             dims,
             cell_start: vec![0; n_cells + 1],
             entries: vec![0; capacity],
+            points: vec![Vec4::ZERO; capacity],
             cell_of: vec![0; capacity],
         }
     }
@@ -68,8 +72,9 @@ impl SpatialGrid {
         (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
     }
 
-    /// Re-file all items at `positions` (length must equal the capacity).
-    pub fn rebuild(&mut self, positions: &[Vec3]) {
+    /// Re-file all items at `positions` (length must equal the capacity), each
+    /// carrying `w[i]` (or 0 if `w` is empty) to the queries.
+    pub fn rebuild(&mut self, positions: &[Vec3], w: &[f32]) {
         assert_eq!(
             positions.len(),
             self.entries.len(),
@@ -89,6 +94,7 @@ impl SpatialGrid {
             let c = self.cell_of[i] as usize;
             let slot = self.cell_start[c] as usize;
             self.entries[slot] = i as u32;
+            self.points[slot] = positions[i].extend(w.get(i).copied().unwrap_or(0.0));
             self.cell_start[c] += 1;
         }
         for c in (1..self.cell_start.len()).rev() {
@@ -97,25 +103,54 @@ impl SpatialGrid {
         self.cell_start[0] = 0;
     }
 
-    /// Calls `f(j)` for every item filed in a cell overlapping the cube of
-    /// half-edge `radius` around `p` — a superset of the items within `radius`;
-    /// callers check the exact distance.
+    /// Calls `f(j)` for every item filed in a cell that intersects the ball of
+    /// `radius` around `p` — a superset of the items within `radius`; callers
+    /// check the exact distance. Rows of cells are clipped to the ball's
+    /// cross-section, so about half the candidates of the bounding cube are visited.
     #[inline]
-    pub fn for_each_candidate(&self, p: Vec3, radius: f32, mut f: impl FnMut(usize)) {
+    pub fn for_each_candidate(&self, p: Vec3, radius: f32, mut f: impl FnMut(usize, Vec4)) {
         let lo = self.coord(p - Vec3::splat(radius));
         let hi = self.coord(p + Vec3::splat(radius));
+        let r2 = radius * radius;
+        let q = (p - self.origin) * self.inv_cell;
         for cz in lo[2]..=hi[2] {
+            let dz = axis_gap(q.z, cz, self.dims[2]) * self.cell;
             for cy in lo[1]..=hi[1] {
+                let dy = axis_gap(q.y, cy, self.dims[1]) * self.cell;
+                let rest = r2 - dy * dy - dz * dz;
+                if rest < 0.0 {
+                    continue;
+                }
+                // The x-extent of the ball's cross-section in this row of cells.
+                let rx = rest.sqrt();
+                let x_lo = self.coord(Vec3::new(p.x - rx, p.y, p.z))[0].max(lo[0]);
+                let x_hi = self.coord(Vec3::new(p.x + rx, p.y, p.z))[0].min(hi[0]);
                 let row = self.index([0, cy, cz]);
-                let start = self.cell_start[row + lo[0]] as usize;
-                let end = self.cell_start[row + hi[0] + 1] as usize;
+                let start = self.cell_start[row + x_lo] as usize;
+                let end = self.cell_start[row + x_hi + 1] as usize;
                 // Cells of one x-row are contiguous in `entries`.
-                for &j in &self.entries[start..end] {
-                    f(j as usize);
+                for (&j, &q) in self.entries[start..end]
+                    .iter()
+                    .zip(&self.points[start..end])
+                {
+                    f(j as usize, q);
                 }
             }
         }
     }
+}
+
+/// Distance, in cells, from coordinate `q` (in cell units) to cell `c` along one
+/// axis; border cells extend to infinity (they also hold points outside the box).
+#[inline]
+fn axis_gap(q: f32, c: usize, n: usize) -> f32 {
+    let lo = if c == 0 { f32::NEG_INFINITY } else { c as f32 };
+    let hi = if c + 1 == n {
+        f32::INFINITY
+    } else {
+        (c + 1) as f32
+    };
+    (lo - q).max(q - hi).max(0.0)
 }
 
 #[cfg(test)]
@@ -146,11 +181,13 @@ mod tests {
             0.7,
             pts.len(),
         );
-        grid.rebuild(&pts);
+        let w: Vec<f32> = (0..pts.len()).map(|i| i as f32).collect();
+        grid.rebuild(&pts, &w);
         for (i, &p) in pts.iter().enumerate().step_by(7) {
             let r = 0.9;
             let mut got = Vec::new();
-            grid.for_each_candidate(p, r, |j| {
+            grid.for_each_candidate(p, r, |j, q| {
+                assert_eq!(q, pts[j].extend(j as f32));
                 if j != i && pts[j].distance(p) < r {
                     got.push(j)
                 }
@@ -167,9 +204,9 @@ mod tests {
     fn points_outside_the_box_are_still_found() {
         let pts = vec![Vec3::new(10.0, 0.0, 0.0), Vec3::new(0.5, 0.5, 0.5)];
         let mut grid = SpatialGrid::new(Vec3::ZERO, Vec3::ONE, 0.25, 2);
-        grid.rebuild(&pts);
+        grid.rebuild(&pts, &[]);
         let mut seen = vec![];
-        grid.for_each_candidate(Vec3::new(1.0, 0.0, 0.0), 0.1, |j| seen.push(j));
+        grid.for_each_candidate(Vec3::new(1.0, 0.0, 0.0), 0.1, |j, _| seen.push(j));
         assert_eq!(seen, vec![0]);
     }
 }
