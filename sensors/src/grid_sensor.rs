@@ -491,8 +491,8 @@ impl Frame {
         // One pass per type channel: branch-free and vectorisable.
         for (k, channel) in types.chunks_exact_mut(CELLS).enumerate() {
             let k = k as u8 + 1;
-            for c in 0..CELLS {
-                channel[c] = (self.kind[c] == k) as u8 as f32;
+            for (v, &kind) in channel.iter_mut().zip(&self.kind) {
+                *v = (kind == k) as u8 as f32;
             }
         }
     }

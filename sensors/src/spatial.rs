@@ -90,11 +90,11 @@ impl SpatialGrid {
             self.cell_start[c + 1] += self.cell_start[c];
         }
         // Scatter in index order; `cell_start[c]` walks forward and is restored below.
-        for i in 0..positions.len() {
+        for (i, &p) in positions.iter().enumerate() {
             let c = self.cell_of[i] as usize;
             let slot = self.cell_start[c] as usize;
             self.entries[slot] = i as u32;
-            self.points[slot] = positions[i].extend(w.get(i).copied().unwrap_or(0.0));
+            self.points[slot] = p.extend(w.get(i).copied().unwrap_or(0.0));
             self.cell_start[c] += 1;
         }
         for c in (1..self.cell_start.len()).rev() {
