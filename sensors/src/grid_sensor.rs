@@ -481,12 +481,8 @@ impl Frame {
         let out = &mut out[..FRAME_LEN];
         let inv = 1.0 / self.range;
         let (prox, types) = out.split_at_mut(CELLS);
-        for c in 0..CELLS {
-            prox[c] = if self.kind[c] != 0 {
-                1.0 - self.dist[c] * inv
-            } else {
-                0.0
-            };
+        for ((p, &k), &d) in prox.iter_mut().zip(&self.kind).zip(&self.dist) {
+            *p = if k != 0 { 1.0 - d * inv } else { 0.0 };
         }
         // One pass per type channel: branch-free and vectorisable.
         for (k, channel) in types.chunks_exact_mut(CELLS).enumerate() {
