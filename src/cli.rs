@@ -32,6 +32,8 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// Draw what one fish sees: its stacked grid-sensor frames as a PNG
     SensorView(SensorViewArgs),
+    /// Judge a school: P, M, state shares, collisions, depth — CSV, JSON and plots
+    Eval(EvalArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -61,13 +63,28 @@ fn parse_phase(s: &str) -> Result<Phase, String> {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`
+    /// Who acts: `random`, `foids`, `boids`
     #[arg(long, default_value = "random")]
     pub policy: String,
     /// Simulated seconds
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
     /// Output folder [default: runs/simulate-<scene>-s<seed>]
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Who acts: `foids`, `boids`, `random`
+    #[arg(long, default_value = "foids")]
+    pub policy: String,
+    /// Simulated seconds
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 }
@@ -127,6 +144,7 @@ pub fn run() -> Result<()> {
         Some(Command::Scenes) => commands::scenes::run(&dirs),
         Some(Command::Simulate(a)) => commands::simulate::run(&dirs, &a),
         Some(Command::SensorView(a)) => commands::sensor_view::run(&dirs, &a),
+        Some(Command::Eval(a)) => commands::eval::run(&dirs, &a),
         Some(Command::Bench {
             what: BenchCommand::Env(a),
         }) => commands::bench::env(&dirs, &a),

@@ -6,3 +6,4 @@ pub mod cli;
 pub mod commands;
 pub mod io;
 pub mod plot;
+pub mod report;

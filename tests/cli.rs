@@ -160,3 +160,85 @@ fn an_unknown_policy_fails_clearly() {
     assert!(!o.status.success());
     assert!(text(&o).contains("unknown policy `genius`"), "{}", text(&o));
 }
+
+/// `eval` on a small scene writes every file; the CSV parses; the PNGs decode;
+/// the summary carries scene, policy and seed.
+#[test]
+fn eval_writes_metrics_summary_and_plots() {
+    for policy in ["foids", "boids", "random"] {
+        let out = temp(&format!("eval-{policy}"));
+        let o = deepfoids(&[
+            "eval",
+            "--scene",
+            "seabream_50",
+            "--policy",
+            policy,
+            "--seconds",
+            "5",
+            "--seed",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(
+            text(&o).contains("P ") && text(&o).contains("state:"),
+            "{}",
+            text(&o)
+        );
+        let csv = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(&header[..4], &["t", "P", "M", "state"]);
+        let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+        assert_eq!(rows.len(), 51, "t = 0 and 50 ticks of 0.1 s");
+        for r in &rows {
+            assert_eq!(r.len(), header.len());
+            let (p, m): (f32, f32) = (r[1].parse().unwrap(), r[2].parse().unwrap());
+            assert!((0.0..=1.0).contains(&p) && (0.0..=1.0).contains(&m));
+            assert!(["swarm", "milling", "polarised", "transitional"].contains(&r[3]));
+        }
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(json["scene"], "seabream_50");
+        assert_eq!(json["policy"], policy);
+        assert_eq!(json["seed"], 2);
+        let shares: f64 = json["summary"]["state_share"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x[1].as_f64().unwrap())
+            .sum();
+        assert!((shares - 1.0).abs() < 1e-5);
+        assert!(
+            json["summary"]["behaviours"][0]["terms_per_decision"]
+                .as_array()
+                .unwrap()
+                .len()
+                == 7
+        );
+        for png in ["pm.png", "depth.png", "trajectories.png"] {
+            let img = image::open(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+            assert!(img.width() > 500 && img.height() > 400, "{png}");
+        }
+    }
+}
+
+#[test]
+fn simulate_takes_the_baselines_too() {
+    let out = temp("simulate-foids");
+    let o = deepfoids(&[
+        "simulate",
+        "--scene",
+        "yellowtail_default",
+        "--policy",
+        "foids",
+        "--seconds",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("policy foids"));
+}

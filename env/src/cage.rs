@@ -104,6 +104,28 @@ impl Cage {
             .min(self.height / 2.0)
     }
 
+    /// The horizontal outline `(x, z)` of the walls, counter-clockwise, closed
+    /// (the first vertex repeated at the end).
+    pub fn outline(&self) -> Vec<(f32, f32)> {
+        let mut v: Vec<(f32, f32)> = match self.config {
+            CageConfig::Octagon { edge, .. } => {
+                let r = octagon_apothem(edge) / (PI / 8.0).cos();
+                (0..8)
+                    .map(|k| {
+                        let a = PI / 8.0 + k as f32 * PI / 4.0;
+                        (r * a.cos(), r * a.sin())
+                    })
+                    .collect()
+            }
+            _ => {
+                let (lo, hi) = self.bounds;
+                vec![(lo.x, lo.z), (hi.x, lo.z), (hi.x, hi.z), (lo.x, hi.z)]
+            }
+        };
+        v.push(v[0]);
+        v
+    }
+
     /// A short description, e.g. `octagon edge 3 × 4.6 m`.
     pub fn describe(&self) -> String {
         match self.config {

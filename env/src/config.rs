@@ -587,6 +587,11 @@ impl ConfigDirs {
         names
     }
 
+    /// Path of a baseline's parameter file, `baselines/<name>.toml`.
+    pub fn baseline(&self, name: &str) -> Result<PathBuf, ConfigError> {
+        self.named("baseline", "baselines", name)
+    }
+
     /// Path of a scene: an existing file path as given, else `scenes/<id>.toml`.
     pub fn scene_path(&self, id_or_path: &str) -> Result<PathBuf, ConfigError> {
         let p = Path::new(id_or_path);

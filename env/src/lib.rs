@@ -6,12 +6,14 @@
 //! No learning library is involved: observations, rewards and actions are flat
 //! `f32` buffers, one contiguous batch per behaviour.
 
+pub mod baselines;
 pub mod cage;
 pub mod collide;
 pub mod config;
 pub mod env;
 pub mod forces;
 pub mod kinematics;
+pub mod metrics;
 pub mod policy;
 pub mod rng;
 pub mod scene;

@@ -192,3 +192,39 @@ fn truncation_at_max_length() {
     );
     assert!(flags.iter().all(|f| !f.1));
 }
+
+/// Collision counting for the metrics: one placed collision between two fish is
+/// one new collision each (2 over the pair); a second decision of the same
+/// contact adds none; the recorder turns it into collisions per fish-hour:
+/// 2 collisions / (3 fish × 0.2 s / 3600 s/h) = 12,000 per fish-hour.
+#[test]
+fn collision_counting_for_the_metrics() {
+    let mut env = calm_env(scene("seabream_default", 3));
+    let c = Vec3::new(0.0, -1.5, 0.0);
+    place(&mut env, 0, c, Vec3::Z, 0.0);
+    place(&mut env, 1, c + Vec3::new(0.02, 0.0, 0.0), Vec3::Z, 0.0);
+    place(&mut env, 2, Vec3::new(-1.0, -2.5, -1.0), Vec3::X, 0.0);
+    env.observe_now();
+    let mut rec = deepfoids_env::metrics::Recorder::new(&env);
+    rec.sample(env.output());
+    for _ in 0..2 {
+        let out = env.step(&zeros(&env)).unwrap();
+        rec.count(out);
+        rec.sample(out);
+    }
+    assert_eq!(rec.samples[1].neighbour_collisions, 2);
+    // Still touching (repulsion is mild): not a new collision.
+    assert_eq!(
+        rec.samples[2].neighbour_collisions,
+        0,
+        "{:?}",
+        env.output().behaviours[0].new_collisions
+    );
+    let s = rec.summary(0.2);
+    assert!(
+        (s.neighbour_collisions_per_fish_hour - 12_000.0).abs() < 1e-6,
+        "{}",
+        s.neighbour_collisions_per_fish_hour
+    );
+    assert_eq!(s.boundary_collisions_per_fish_hour, 0.0);
+}

@@ -1,11 +1,13 @@
 //! One module per command.
 
 pub mod bench;
+pub mod eval;
 pub mod scenes;
 pub mod sensor_view;
 pub mod simulate;
 
 use anyhow::{Result, bail};
+use deepfoids_env::baselines::{Boids, BoidsConfig, Foids, FoidsConfig};
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
 
 /// Load a scene with its reward weights; the error names the file and field.
@@ -13,11 +15,24 @@ pub fn load_scene(dirs: &ConfigDirs, id: &str, phase: Phase) -> Result<Scene> {
     Ok(Scene::load(dirs, id, phase)?)
 }
 
-/// The policy named on the command line.
-pub fn make_policy(name: &str, seed: u64, _env: &Env) -> Result<Box<dyn Policy>> {
+/// The policy named on the command line: a scripted baseline (parameters from
+/// `configs/baselines/<name>.toml`) or random actions.
+pub fn make_policy(
+    dirs: &ConfigDirs,
+    name: &str,
+    seed: u64,
+    _env: &Env,
+) -> Result<Box<dyn Policy>> {
     match name {
         "random" => Ok(Box::new(RandomPolicy { seed })),
-        other => bail!("unknown policy `{other}`; allowed: random"),
+        "foids" => Ok(Box::new(Foids::new(
+            FoidsConfig::load(&dirs.baseline("foids")?)?,
+            seed,
+        ))),
+        "boids" => Ok(Box::new(Boids::new(BoidsConfig::load(
+            &dirs.baseline("boids")?,
+        )?))),
+        other => bail!("unknown policy `{other}`; allowed: random, foids, boids"),
     }
 }
 

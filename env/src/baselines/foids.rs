@@ -1,0 +1,434 @@
+//! Foids (Ishiwaka et al. 2021, §4, Algorithm 1, Table 1): the improved Boids
+//! rules with distance terms, boundary avoidance with regular and front
+//! factors, day/night scaling, the control cycle of Eq. 8 and the two swimming
+//! modes. Parameters: `configs/baselines/foids.toml`.
+//!
+//! All lengths are in the deciding fish's body lengths (BL) and velocities in
+//! BL/s; the summed delta velocity `Δv_sum` (Eq. 8, without the light and
+//! temperature terms the environment adds) gives the desired velocity
+//! `v + Δv_sum`, turned into actions by [`super::steer`] within the action
+//! limits, spread over the decision interval by the environment.
+
+use super::{neighbour_grid, obstacle_deflection, steer};
+use crate::config::{ConfigError, read_toml};
+use crate::policy::{Policy, PolicyError};
+use crate::rng::{Purpose, Stream};
+use crate::{Env, World};
+use deepfoids_sensors::Boundary;
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Foids parameters (Table 1 of the Foids paper). Lengths in BL.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FoidsConfig {
+    /// Separation detection range `r_s` (BL). Table 1: 3.
+    pub separation_range: f32,
+    /// Alignment detection range `r_a` (BL). Table 1: 3.
+    pub alignment_range: f32,
+    /// Cohesion detection range `r_c` (BL). Table 1: 3.
+    pub cohesion_range: f32,
+    /// Separation weight `w_s` (BL). Table 1: 30.
+    pub separation_weight: f32,
+    /// Alignment weight `w_a` (BL). Table 1: 12.
+    pub alignment_weight: f32,
+    /// Cohesion weight `w_c` (BL). Table 1: 0.1.
+    pub cohesion_weight: f32,
+    /// Preferred distance to boundaries `r_pref` (BL). Table 1: 4.
+    pub boundary_range: f32,
+    /// Regular boundary avoidance weight `w_rb` (BL). Table 1: 1.
+    pub regular_boundary_weight: f32,
+    /// Front boundary avoidance weight `w_fb` (BL). Table 1: 1.
+    pub front_boundary_weight: f32,
+    /// Multiplier of vertical boundary avoidance `m`. Table 1: 2.5.
+    pub vertical_multiplier: f32,
+    /// Swimming speed at night (BL/s); by day the species' range. Table 1: [0, 0.4].
+    pub night_speed: [f32; 2],
+    /// Probability that a fish in the lower half of the cage starts hovering `H_start`. Table 1: 0.01.
+    pub hover_start: f32,
+    /// Probability per simulation step of switching mode `H_switch`. Table 1: 0.00005.
+    pub hover_switch: f32,
+    /// Elevation threshold for hover → rapid `θ_et` (degrees). Table 1: 23.
+    pub elevation_threshold_deg: f32,
+    /// Depression threshold for rapid → hover `θ_dt` (degrees). Table 1: 11.
+    pub depression_threshold_deg: f32,
+    /// Activeness of hovering fish `H_active` (scales speed, alignment and cohesion). Table 1: 0.17.
+    pub hover_activeness: f32,
+    /// Obstacle avoidance weight (BL/s); Foids has no obstacles, so the CS275 rule is used. Default 4.
+    pub obstacle_weight: f32,
+}
+
+impl Default for FoidsConfig {
+    fn default() -> Self {
+        Self {
+            separation_range: 3.0,
+            alignment_range: 3.0,
+            cohesion_range: 3.0,
+            separation_weight: 30.0,
+            alignment_weight: 12.0,
+            cohesion_weight: 0.1,
+            boundary_range: 4.0,
+            regular_boundary_weight: 1.0,
+            front_boundary_weight: 1.0,
+            vertical_multiplier: 2.5,
+            night_speed: [0.0, 0.4],
+            hover_start: 0.01,
+            hover_switch: 0.00005,
+            elevation_threshold_deg: 23.0,
+            depression_threshold_deg: 11.0,
+            hover_activeness: 0.17,
+            obstacle_weight: 4.0,
+        }
+    }
+}
+
+impl FoidsConfig {
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        read_toml(path)
+    }
+}
+
+/// Separation (Eq. 1): `w_s · mean_j (r_s − |d_ij|) d_ij` over neighbours with
+/// `|d_ij| < r_s`, `d_ij` pointing from neighbour `j` to the fish (BL).
+pub fn separation(me: Vec3, others: &[Vec3], range: f32, weight: f32) -> Vec3 {
+    let (mut sum, mut n) = (Vec3::ZERO, 0);
+    for &o in others {
+        let d = me - o;
+        let len = d.length();
+        if len < range {
+            sum += (range - len) * d;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        Vec3::ZERO
+    } else {
+        weight * sum / n as f32
+    }
+}
+
+/// Alignment (Eq. 2): `w_a · (mean_j (r_a − |d_ij|) v_j − v_i)` over neighbours within `r_a`.
+pub fn alignment(me: Vec3, v: Vec3, others: &[(Vec3, Vec3)], range: f32, weight: f32) -> Vec3 {
+    let (mut sum, mut n) = (Vec3::ZERO, 0);
+    for &(o, vo) in others {
+        let len = (me - o).length();
+        if len < range {
+            sum += (range - len) * vo;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        Vec3::ZERO
+    } else {
+        weight * (sum / n as f32 - v)
+    }
+}
+
+/// Cohesion (Eq. 3): `w_c · (mean_j p_j − p_i)` over neighbours within `r_c`.
+pub fn cohesion(me: Vec3, others: &[Vec3], range: f32, weight: f32) -> Vec3 {
+    let (mut sum, mut n) = (Vec3::ZERO, 0);
+    for &o in others {
+        if (me - o).length() < range {
+            sum += o;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        Vec3::ZERO
+    } else {
+        weight * (sum / n as f32 - me)
+    }
+}
+
+/// Boundary avoidance (Eq. 4), distances in BL. Walls: `max(r_pref − r, 0) ·
+/// (w_rb d_ca + w_fb cos θ_fb n)`; bottom and surface: `m (w_rb + w_fb cos θ_fb)
+/// max(r_pref − r, 0)` up or down. `d_ca` points horizontally to the cage axis,
+/// `n` is the inward normal, and `cos θ_fb = heading · (−n)` counts only when
+/// the boundary is ahead (`cos θ_fb > 0`). `scale` multiplies the weights (night).
+pub fn boundary(
+    p: Vec3,
+    heading: Vec3,
+    bl: f32,
+    boundaries: &[Boundary],
+    cfg: &FoidsConfig,
+    scale: f32,
+) -> Vec3 {
+    let mut dv = Vec3::ZERO;
+    let to_axis = Vec3::new(-p.x, 0.0, -p.z)
+        .try_normalize()
+        .unwrap_or(Vec3::ZERO);
+    let r_pref = cfg.boundary_range;
+    for b in boundaries {
+        let r = b.plane.distance(p) / bl;
+        let excess = (r_pref - r).max(0.0);
+        if excess == 0.0 {
+            continue;
+        }
+        let n = b.plane.normal;
+        let front = heading.dot(-n).max(0.0);
+        let (w_rb, w_fb) = (
+            cfg.regular_boundary_weight * scale,
+            cfg.front_boundary_weight * scale,
+        );
+        dv += if n.y.abs() > 0.5 {
+            // Bottom (n up) or surface (n down).
+            cfg.vertical_multiplier * (w_rb + w_fb * front) * excess * n
+        } else {
+            excess * (w_rb * to_axis + w_fb * front * n)
+        };
+    }
+    dv
+}
+
+/// The Foids school.
+pub struct Foids {
+    pub config: FoidsConfig,
+    pub seed: u64,
+    /// Hovering fish (per fish); decided at the first decision, then switched per Algorithm 1.
+    hovering: Vec<bool>,
+    started: bool,
+}
+
+impl Foids {
+    pub fn new(config: FoidsConfig, seed: u64) -> Self {
+        Self {
+            config,
+            seed,
+            hovering: Vec::new(),
+            started: false,
+        }
+    }
+
+    /// Whether fish `i` is hovering now.
+    pub fn is_hovering(&self, i: usize) -> bool {
+        self.hovering.get(i).copied().unwrap_or(false)
+    }
+}
+
+impl Policy for Foids {
+    fn name(&self) -> String {
+        "foids".into()
+    }
+
+    fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
+        let w: &World = env.world();
+        let n = w.len();
+        let cfg = &self.config;
+        let height = env.cage().height;
+        let tick = env.output().tick;
+        if !self.started {
+            self.hovering = (0..n)
+                .map(|i| {
+                    let lower = -w.position[i].y > height / 2.0;
+                    lower
+                        && Stream::new(self.seed, Purpose::Policy, i as u64, u64::MAX).uniform()
+                            < cfg.hover_start
+                })
+                .collect();
+            self.started = true;
+        }
+        let night = env.surface_light() <= 0.0;
+        let max_range = cfg
+            .separation_range
+            .max(cfg.alignment_range)
+            .max(cfg.cohesion_range);
+        let max_bl = w.bl.iter().copied().fold(0.0, f32::max);
+        let grid = neighbour_grid(env, max_range * max_bl);
+        let phys = &env.scene().physics;
+        for (b, info) in env.behaviours().iter().enumerate() {
+            if !env.awaiting(b) {
+                continue;
+            }
+            let species = &env.scene().behaviours[b].species;
+            let day = species.speed_bl;
+            // Day/night: at night speeds, weights and ranges shrink by s = night max / day max.
+            let s = if night {
+                cfg.night_speed[1] / day[1]
+            } else {
+                1.0
+            };
+            let speed_range = if night { cfg.night_speed } else { day };
+            let switch = 1.0 - (1.0 - cfg.hover_switch).powi(info.steps_per_decision as i32);
+            let range = info.range();
+            let out = &mut actions[b];
+            out.resize(info.count * 3, 0.0);
+            // Mode switches first (serial, seeded per fish and tick).
+            for i in range.clone() {
+                let pitch = crate::kinematics::pitch_deg(w.heading[i]);
+                let upper = -w.position[i].y < height / 2.0;
+                let u = Stream::new(self.seed, Purpose::Policy, i as u64, tick).uniform();
+                if self.hovering[i] {
+                    if (upper || pitch > cfg.elevation_threshold_deg) && u < switch {
+                        self.hovering[i] = false;
+                    }
+                } else if (!upper || -pitch > cfg.depression_threshold_deg) && u < switch {
+                    self.hovering[i] = true;
+                }
+            }
+            let hovering = &self.hovering;
+            out.par_chunks_mut(3)
+                .enumerate()
+                .with_min_len(64)
+                .for_each(|(a, act)| {
+                    let i = range.start + a;
+                    let bl = w.bl[i];
+                    let hover = if hovering[i] {
+                        cfg.hover_activeness
+                    } else {
+                        1.0
+                    };
+                    let me = w.position[i] / bl;
+                    let v = w.velocity(i) / bl;
+                    let (mut near, mut near_v) = ([Vec3::ZERO; 96], [(Vec3::ZERO, Vec3::ZERO); 96]);
+                    let mut k = 0;
+                    let reach = max_range * s * bl;
+                    grid.for_each_candidate(w.position[i], reach, |j, q| {
+                        if j != i
+                            && k < near.len()
+                            && q.truncate().distance_squared(w.position[i]) < reach * reach
+                        {
+                            near[k] = q.truncate() / bl;
+                            near_v[k] = (near[k], w.velocity(j) / bl);
+                            k += 1;
+                        }
+                    });
+                    let dv = separation(
+                        me,
+                        &near[..k],
+                        cfg.separation_range * s,
+                        cfg.separation_weight,
+                    ) + alignment(
+                        me,
+                        v,
+                        &near_v[..k],
+                        cfg.alignment_range * s,
+                        cfg.alignment_weight * s * hover,
+                    ) + cohesion(
+                        me,
+                        &near[..k],
+                        cfg.cohesion_range * s,
+                        cfg.cohesion_weight * s * hover,
+                    ) + boundary(
+                        w.position[i],
+                        w.heading[i],
+                        bl,
+                        &env.cage().boundaries,
+                        cfg,
+                        s,
+                    ) + env
+                        .obstacles()
+                        .iter()
+                        .map(|o| {
+                            obstacle_deflection(
+                                w.position[i],
+                                w.heading[i],
+                                0.5 * bl,
+                                o,
+                                cfg.boundary_range * bl,
+                            ) * cfg.obstacle_weight
+                        })
+                        .sum::<Vec3>();
+                    let desired = (v + dv) * bl;
+                    let range_bl = [speed_range[0] * hover, speed_range[1] * hover];
+                    let action = steer(
+                        w.heading[i],
+                        w.roll[i],
+                        w.speed[i],
+                        bl,
+                        desired,
+                        range_bl,
+                        species.max_delta_speed_bl,
+                        phys.max_turn_deg.to_radians(),
+                    );
+                    act.copy_from_slice(&action);
+                });
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Vec3, b: Vec3) -> bool {
+        (a - b).length() < 1e-5
+    }
+
+    /// Two fish 1 BL apart along x: d = (−1, 0, 0) from the neighbour to me;
+    /// Δv_s = 30 · (3 − 1) · (−1, 0, 0) = (−60, 0, 0).
+    #[test]
+    fn separation_two_fish() {
+        let dv = separation(Vec3::ZERO, &[Vec3::X], 3.0, 30.0);
+        assert!(close(dv, Vec3::new(-60.0, 0.0, 0.0)), "{dv}");
+    }
+
+    /// Three fish: neighbours at +x (1 BL) and +z (2 BL):
+    /// mean of (2·(−1,0,0), 1·(0,0,−2)) = (−1, 0, −1); × 30 = (−30, 0, −30).
+    /// A fish beyond r_s does not count.
+    #[test]
+    fn separation_three_fish() {
+        let dv = separation(
+            Vec3::ZERO,
+            &[Vec3::X, Vec3::new(0.0, 0.0, 2.0), Vec3::new(5.0, 0.0, 0.0)],
+            3.0,
+            30.0,
+        );
+        assert!(close(dv, Vec3::new(-30.0, 0.0, -30.0)), "{dv}");
+    }
+
+    /// Alignment, three fish: me at 0 moving (1,0,0) BL/s; neighbours at 1 BL with
+    /// v = (0,0,1) and at 2 BL with v = (0,0,2): weighted velocities 2·(0,0,1)
+    /// and 1·(0,0,2); mean (0,0,2); Δv_a = 12 · ((0,0,2) − (1,0,0)) = (−12, 0, 24).
+    #[test]
+    fn alignment_three_fish() {
+        let others = [
+            (Vec3::X, Vec3::Z),
+            (Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.0, 2.0)),
+        ];
+        let dv = alignment(Vec3::ZERO, Vec3::X, &others, 3.0, 12.0);
+        assert!(close(dv, Vec3::new(-12.0, 0.0, 24.0)), "{dv}");
+    }
+
+    /// Cohesion, three fish: neighbours at (2,0,0) and (0,0,2), mean (1,0,1);
+    /// Δv_c = 0.1 · (1, 0, 1).
+    #[test]
+    fn cohesion_three_fish() {
+        let dv = cohesion(
+            Vec3::ZERO,
+            &[Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0)],
+            3.0,
+            0.1,
+        );
+        assert!(close(dv, Vec3::new(0.1, 0.0, 0.1)), "{dv}");
+    }
+
+    /// Boundary, in a 5 m cube, a fish (BL 0.5) 1 m (2 BL) from the wall x = 2.5,
+    /// 2.5 m (5 BL) from the other walls, bottom and surface, heading into the wall:
+    /// (4 − 2)·(1·(−1,0,0) + 1·cos 0°·(−1,0,0)) = (−4, 0, 0); heading away, only the
+    /// regular factor: (−2, 0, 0).
+    #[test]
+    fn boundary_wall_ahead() {
+        let cage = crate::cage::Cage::new(crate::config::CageConfig::Cube { edge: 5.0 });
+        let cfg = FoidsConfig::default();
+        let p = Vec3::new(1.5, -2.5, 0.0);
+        let dv = boundary(p, Vec3::X, 0.5, &cage.boundaries, &cfg, 1.0);
+        assert!(close(dv, Vec3::new(-4.0, 0.0, 0.0)), "{dv}");
+        let dv = boundary(p, -Vec3::X, 0.5, &cage.boundaries, &cfg, 1.0);
+        assert!(close(dv, Vec3::new(-2.0, 0.0, 0.0)), "{dv}");
+        // In a 5 m cube, 0.5 m below the surface (1 BL), level: 2.5 · 1 · (4 − 1) · (0,−1,0)
+        // = (0, −7.5, 0); bottom (9 BL) and walls (5 BL) are beyond r_pref.
+        let cage = crate::cage::Cage::new(crate::config::CageConfig::Cube { edge: 5.0 });
+        let dv = boundary(
+            Vec3::new(0.0, -0.5, 0.0),
+            Vec3::Z,
+            0.5,
+            &cage.boundaries,
+            &cfg,
+            1.0,
+        );
+        assert!(close(dv, Vec3::new(0.0, -7.5, 0.0)), "{dv}");
+    }
+}

@@ -1,0 +1,542 @@
+//! How a school is judged, whoever drives it (SPEC §9; thesis Appendix A.3).
+//!
+//! * Order parameters over the N fish of a school at one instant, with `x_c`
+//!   the school centre, `r_i = x_i − x_c` and `d_i` the unit heading (Eq. A.3):
+//!   `P = |Σ d_i| / N` (polarisation), `M = |Σ (r_i × d_i)/|r_i|| / N` (milling).
+//! * School state by the thresholds of Tunstrøm et al. (2013): swarm
+//!   `P < 0.35 ∧ M < 0.35`; milling `P < 0.35 ∧ M > 0.65`; polarised
+//!   `P > 0.65 ∧ M < 0.35`; otherwise transitional.
+//! * Nearest-neighbour distance in body lengths (of the fish measuring it),
+//!   collisions per fish-hour, speed in BL/s, depth distribution per behaviour,
+//!   cumulative reward per term.
+
+use crate::env::{N_TERMS, StepOutput, TERM_NAMES};
+use deepfoids_sensors::SpatialGrid;
+use glam::Vec3;
+use serde::Serialize;
+
+/// Polarisation `P` and milling `M` (Eq. A.3) of the fish `idx` (all if `None`).
+pub fn order_parameters(position: &[Vec3], heading: &[Vec3], idx: Option<&[usize]>) -> (f32, f32) {
+    let all: Vec<usize>;
+    let idx = match idx {
+        Some(i) => i,
+        None => {
+            all = (0..position.len()).collect();
+            &all
+        }
+    };
+    let n = idx.len();
+    if n == 0 {
+        return (0.0, 0.0);
+    }
+    let centre = idx.iter().map(|&i| position[i]).sum::<Vec3>() / n as f32;
+    let mut sum_d = Vec3::ZERO;
+    let mut sum_m = Vec3::ZERO;
+    for &i in idx {
+        let d = heading[i].normalize_or_zero();
+        sum_d += d;
+        let r = position[i] - centre;
+        let len = r.length();
+        if len > 1e-9 {
+            sum_m += r.cross(d) / len;
+        }
+    }
+    (sum_d.length() / n as f32, sum_m.length() / n as f32)
+}
+
+/// The collective state of a school (Tunstrøm et al. 2013).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SchoolState {
+    Swarm,
+    Milling,
+    Polarised,
+    Transitional,
+}
+
+impl SchoolState {
+    /// Lower threshold of "high" and upper threshold of "low".
+    pub const LOW: f32 = 0.35;
+    pub const HIGH: f32 = 0.65;
+    pub const ALL: [SchoolState; 4] = [
+        SchoolState::Swarm,
+        SchoolState::Milling,
+        SchoolState::Polarised,
+        SchoolState::Transitional,
+    ];
+
+    pub fn classify(p: f32, m: f32) -> Self {
+        if p < Self::LOW && m < Self::LOW {
+            SchoolState::Swarm
+        } else if p < Self::LOW && m > Self::HIGH {
+            SchoolState::Milling
+        } else if p > Self::HIGH && m < Self::LOW {
+            SchoolState::Polarised
+        } else {
+            SchoolState::Transitional
+        }
+    }
+
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            SchoolState::Swarm => "swarm",
+            SchoolState::Milling => "milling",
+            SchoolState::Polarised => "polarised",
+            SchoolState::Transitional => "transitional",
+        }
+    }
+
+    fn index(&self) -> usize {
+        *self as usize
+    }
+}
+
+/// Nearest-neighbour distance of every fish in its own body lengths
+/// (`f32::INFINITY` for a fish alone), using `grid` (rebuilt here).
+pub fn nearest_neighbour_bl(
+    position: &[Vec3],
+    bl: &[f32],
+    grid: &mut SpatialGrid,
+    out: &mut Vec<f32>,
+) {
+    grid.rebuild(position, &[]);
+    out.clear();
+    for (i, &p) in position.iter().enumerate() {
+        // Grow the search until something is found (cells are a few BL wide).
+        let mut radius = grid.cell_size();
+        let mut best = f32::INFINITY;
+        for _ in 0..6 {
+            grid.for_each_candidate(p, radius, |j, q| {
+                if j != i {
+                    best = best.min(q.truncate().distance_squared(p));
+                }
+            });
+            if best <= radius * radius {
+                break;
+            }
+            radius *= 2.0;
+        }
+        out.push(best.sqrt() / bl[i]);
+    }
+}
+
+/// The `q`-quantile (0–1) of `values` by linear interpolation (sorts a copy).
+pub fn quantile(values: &[f32], q: f32) -> f32 {
+    let mut v: Vec<f32> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return f32::NAN;
+    }
+    v.sort_by(f32::total_cmp);
+    let pos = q.clamp(0.0, 1.0) * (v.len() - 1) as f32;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    v[lo] + (v[hi] - v[lo]) * (pos - lo as f32)
+}
+
+/// One sample of the school, taken at a tick.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sample {
+    /// Simulated time (s).
+    pub t: f64,
+    pub p: f32,
+    pub m: f32,
+    pub state: SchoolState,
+    /// P and M per behaviour, in behaviour order.
+    pub per_behaviour: Vec<(f32, f32)>,
+    /// Mean and 5th percentile of the nearest-neighbour distance (BL).
+    pub nn_mean_bl: f32,
+    pub nn_p05_bl: f32,
+    /// Mean speed (BL/s) and depth (m).
+    pub speed_bl: f32,
+    pub depth: f32,
+    /// Boundary and neighbour collisions since the previous sample.
+    pub boundary_collisions: u64,
+    pub neighbour_collisions: u64,
+    /// Mean reward per agent-decision of the decisions ending at this tick (NaN if none).
+    pub reward: f32,
+}
+
+/// Per-behaviour totals over a run.
+#[derive(Clone, Debug, Serialize)]
+pub struct BehaviourSummary {
+    pub name: String,
+    pub fish: usize,
+    pub decisions: u64,
+    pub p_mean: f32,
+    pub m_mean: f32,
+    /// Mean reward per agent-decision and each term's mean (in [`TERM_NAMES`] order).
+    pub reward_per_decision: f64,
+    pub terms_per_decision: Vec<(String, f64)>,
+    /// Reward per agent-decision summed… per fish over the run (cumulative reward).
+    pub cumulative_reward_per_fish: f64,
+    pub boundary_collisions_per_fish_hour: f64,
+    pub neighbour_collisions_per_fish_hour: f64,
+    pub mean_speed_bl: f32,
+    /// Depth histogram: `depth_edges` (m) has one more entry than `depth_share`.
+    pub depth_edges: Vec<f32>,
+    pub depth_share: Vec<f32>,
+    pub mean_depth: f32,
+}
+
+/// Everything `eval` reports, for the whole school.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub seconds: f64,
+    pub samples: usize,
+    pub fish: usize,
+    pub p_mean: f32,
+    pub p_std: f32,
+    pub m_mean: f32,
+    pub m_std: f32,
+    /// Share of samples in each state.
+    pub state_share: Vec<(SchoolState, f32)>,
+    /// The state most often seen.
+    pub dominant_state: SchoolState,
+    pub nn_mean_bl: f32,
+    pub nn_p05_bl: f32,
+    pub boundary_collisions_per_fish_hour: f64,
+    pub neighbour_collisions_per_fish_hour: f64,
+    pub mean_speed_bl: f32,
+    pub reward_per_decision: f64,
+    pub behaviours: Vec<BehaviourSummary>,
+}
+
+#[derive(Clone, Debug, Default)]
+struct Acc {
+    decisions: u64,
+    reward: f64,
+    terms: [f64; N_TERMS],
+    boundary: u64,
+    neighbour: u64,
+    p: f64,
+    m: f64,
+    speed: f64,
+    speed_n: u64,
+    depth: Vec<u64>,
+    depth_sum: f64,
+}
+
+/// Collects samples and totals from the outputs of a run.
+pub struct Recorder {
+    names: Vec<String>,
+    counts: Vec<usize>,
+    ranges: Vec<std::ops::Range<usize>>,
+    cage_height: f32,
+    depth_bins: usize,
+    grid: SpatialGrid,
+    nn: Vec<f32>,
+    acc: Vec<Acc>,
+    pending_boundary: u64,
+    pending_neighbour: u64,
+    pub samples: Vec<Sample>,
+}
+
+impl Recorder {
+    /// A recorder for `env`'s school.
+    pub fn new(env: &crate::Env) -> Self {
+        let (lo, hi) = env.cage().bounds;
+        let max_bl = env.world().bl.iter().copied().fold(0.1, f32::max);
+        let depth_bins = 20;
+        Self {
+            names: env.behaviours().iter().map(|b| b.name.clone()).collect(),
+            counts: env.behaviours().iter().map(|b| b.count).collect(),
+            ranges: env.behaviours().iter().map(|b| b.range()).collect(),
+            cage_height: env.cage().height,
+            depth_bins,
+            grid: SpatialGrid::new(lo, hi, 2.0 * max_bl, env.world().len()),
+            nn: Vec::with_capacity(env.world().len()),
+            acc: vec![
+                Acc {
+                    depth: vec![0; depth_bins],
+                    ..Acc::default()
+                };
+                env.behaviours().len()
+            ],
+            pending_boundary: 0,
+            pending_neighbour: 0,
+            samples: Vec::new(),
+        }
+    }
+
+    /// Count the rewards and collisions of an output (call for every output).
+    pub fn count(&mut self, out: &StepOutput) {
+        for (b, batch) in out.behaviours.iter().enumerate() {
+            if !batch.decided {
+                continue;
+            }
+            let a = &mut self.acc[b];
+            a.decisions += batch.n_agents as u64;
+            for i in 0..batch.n_agents {
+                a.reward += batch.rewards[i] as f64;
+                for (t, v) in batch.terms[i].iter().enumerate() {
+                    a.terms[t] += *v as f64;
+                }
+                let bc = batch.terminated[i] as u64;
+                a.boundary += bc;
+                a.neighbour += batch.new_collisions[i] as u64;
+                self.pending_boundary += bc;
+                self.pending_neighbour += batch.new_collisions[i] as u64;
+            }
+        }
+    }
+
+    /// Take a sample of the school's state now.
+    pub fn sample(&mut self, out: &StepOutput) {
+        let f = &out.fish;
+        let (p, m) = order_parameters(&f.position, &f.heading, None);
+        let per_behaviour: Vec<(f32, f32)> = self
+            .ranges
+            .iter()
+            .map(|r| {
+                let idx: Vec<usize> = r.clone().collect();
+                order_parameters(&f.position, &f.heading, Some(&idx))
+            })
+            .collect();
+        nearest_neighbour_bl(&f.position, &f.bl, &mut self.grid, &mut self.nn);
+        let finite: Vec<f32> = self.nn.iter().copied().filter(|x| x.is_finite()).collect();
+        let nn_mean = if finite.is_empty() {
+            f32::NAN
+        } else {
+            finite.iter().sum::<f32>() / finite.len() as f32
+        };
+        let n = f.position.len().max(1) as f32;
+        let speed = f.speed.iter().zip(&f.bl).map(|(s, b)| s / b).sum::<f32>() / n;
+        let depth = f.position.iter().map(|p| -p.y).sum::<f32>() / n;
+        for (b, r) in self.ranges.iter().enumerate() {
+            let a = &mut self.acc[b];
+            a.p += per_behaviour[b].0 as f64;
+            a.m += per_behaviour[b].1 as f64;
+            for i in r.clone() {
+                a.speed += (f.speed[i] / f.bl[i]) as f64;
+                a.speed_n += 1;
+                let d = -f.position[i].y;
+                a.depth_sum += d as f64;
+                let bin = ((d / self.cage_height) * self.depth_bins as f32)
+                    .clamp(0.0, self.depth_bins as f32 - 1.0) as usize;
+                a.depth[bin] += 1;
+            }
+        }
+        let (mut r_sum, mut r_n) = (0.0f64, 0u64);
+        for batch in out.behaviours.iter().filter(|b| b.decided) {
+            r_sum += batch.rewards.iter().map(|&r| r as f64).sum::<f64>();
+            r_n += batch.n_agents as u64;
+        }
+        self.samples.push(Sample {
+            t: out.time,
+            p,
+            m,
+            state: SchoolState::classify(p, m),
+            per_behaviour,
+            nn_mean_bl: nn_mean,
+            nn_p05_bl: quantile(&finite, 0.05),
+            speed_bl: speed,
+            depth,
+            boundary_collisions: std::mem::take(&mut self.pending_boundary),
+            neighbour_collisions: std::mem::take(&mut self.pending_neighbour),
+            reward: if r_n > 0 {
+                (r_sum / r_n as f64) as f32
+            } else {
+                f32::NAN
+            },
+        });
+    }
+
+    /// Totals over the run; `seconds` is the simulated time covered.
+    pub fn summary(&self, seconds: f64) -> Summary {
+        let s = &self.samples;
+        let n = s.len().max(1) as f32;
+        let mean = |f: &dyn Fn(&Sample) -> f32| s.iter().map(f).sum::<f32>() / n;
+        let std = |f: &dyn Fn(&Sample) -> f32, mu: f32| {
+            (s.iter().map(|x| (f(x) - mu).powi(2)).sum::<f32>() / n).sqrt()
+        };
+        let (p_mean, m_mean) = (mean(&|x| x.p), mean(&|x| x.m));
+        let mut states = [0usize; 4];
+        for x in s {
+            states[x.state.index()] += 1;
+        }
+        let state_share: Vec<(SchoolState, f32)> = SchoolState::ALL
+            .iter()
+            .map(|st| (*st, states[st.index()] as f32 / n))
+            .collect();
+        let dominant_state = state_share
+            .iter()
+            .fold(state_share[0], |a, b| if b.1 > a.1 { *b } else { a })
+            .0;
+        let fish: usize = self.counts.iter().sum();
+        let fish_hours = fish as f64 * seconds / 3600.0;
+        let finite_mean = |f: &dyn Fn(&Sample) -> f32| {
+            let v: Vec<f32> = s.iter().map(f).filter(|x| x.is_finite()).collect();
+            if v.is_empty() {
+                f32::NAN
+            } else {
+                v.iter().sum::<f32>() / v.len() as f32
+            }
+        };
+        let behaviours: Vec<BehaviourSummary> = self
+            .acc
+            .iter()
+            .enumerate()
+            .map(|(b, a)| {
+                let dec = a.decisions.max(1) as f64;
+                let hours = self.counts[b] as f64 * seconds / 3600.0;
+                let total: u64 = a.depth.iter().sum();
+                BehaviourSummary {
+                    name: self.names[b].clone(),
+                    fish: self.counts[b],
+                    decisions: a.decisions,
+                    p_mean: (a.p / n as f64) as f32,
+                    m_mean: (a.m / n as f64) as f32,
+                    reward_per_decision: a.reward / dec,
+                    terms_per_decision: TERM_NAMES
+                        .iter()
+                        .zip(a.terms)
+                        .map(|(t, v)| (t.to_string(), v / dec))
+                        .collect(),
+                    cumulative_reward_per_fish: a.reward / self.counts[b].max(1) as f64,
+                    boundary_collisions_per_fish_hour: a.boundary as f64 / hours.max(1e-12),
+                    neighbour_collisions_per_fish_hour: a.neighbour as f64 / hours.max(1e-12),
+                    mean_speed_bl: (a.speed / a.speed_n.max(1) as f64) as f32,
+                    depth_edges: (0..=self.depth_bins)
+                        .map(|k| self.cage_height * k as f32 / self.depth_bins as f32)
+                        .collect(),
+                    depth_share: a
+                        .depth
+                        .iter()
+                        .map(|&c| c as f32 / total.max(1) as f32)
+                        .collect(),
+                    mean_depth: (a.depth_sum / a.speed_n.max(1) as f64) as f32,
+                }
+            })
+            .collect();
+        let decisions: u64 = self.acc.iter().map(|a| a.decisions).sum();
+        Summary {
+            seconds,
+            samples: s.len(),
+            fish,
+            p_mean,
+            p_std: std(&|x| x.p, p_mean),
+            m_mean,
+            m_std: std(&|x| x.m, m_mean),
+            state_share,
+            dominant_state,
+            nn_mean_bl: finite_mean(&|x| x.nn_mean_bl),
+            nn_p05_bl: finite_mean(&|x| x.nn_p05_bl),
+            boundary_collisions_per_fish_hour: self.acc.iter().map(|a| a.boundary).sum::<u64>()
+                as f64
+                / fish_hours.max(1e-12),
+            neighbour_collisions_per_fish_hour: self.acc.iter().map(|a| a.neighbour).sum::<u64>()
+                as f64
+                / fish_hours.max(1e-12),
+            mean_speed_bl: mean(&|x| x.speed_bl),
+            reward_per_decision: self.acc.iter().map(|a| a.reward).sum::<f64>()
+                / decisions.max(1) as f64,
+            behaviours,
+        }
+    }
+
+    pub fn behaviour_names(&self) -> &[String] {
+        &self.names
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::TAU;
+
+    /// All fish aligned, on a grid symmetric about its centre: P = 1 and
+    /// M = |(Σ r̂_i) × d| / N = 0 (the r̂_i cancel in pairs).
+    #[test]
+    fn aligned_fish_are_polarised() {
+        let mut pos = vec![];
+        for x in -2..=2 {
+            for z in -2..=2 {
+                for y in [-1.0f32, -2.0] {
+                    pos.push(Vec3::new(x as f32 * 0.3, y, z as f32 * 0.4));
+                }
+            }
+        }
+        let head = vec![Vec3::new(1.0, 0.0, 1.0).normalize(); pos.len()];
+        let (p, m) = order_parameters(&pos, &head, None);
+        assert!((p - 1.0).abs() < 1e-6, "{p}");
+        assert!(m < 1e-5, "{m}");
+        assert_eq!(SchoolState::classify(p, m), SchoolState::Polarised);
+    }
+
+    /// Fish on a ring heading tangentially: M = 1, P ≈ 0.
+    #[test]
+    fn a_ring_mills() {
+        let n = 100;
+        let pos: Vec<Vec3> = (0..n)
+            .map(|i| {
+                let a = TAU * i as f32 / n as f32;
+                Vec3::new(2.0 * a.cos(), -1.5, 2.0 * a.sin())
+            })
+            .collect();
+        let head: Vec<Vec3> = (0..n)
+            .map(|i| {
+                let a = TAU * i as f32 / n as f32;
+                Vec3::new(-a.sin(), 0.0, a.cos())
+            })
+            .collect();
+        let (p, m) = order_parameters(&pos, &head, None);
+        assert!(p < 1e-5, "{p}");
+        assert!((m - 1.0).abs() < 1e-5, "{m}");
+        assert_eq!(SchoolState::classify(p, m), SchoolState::Milling);
+    }
+
+    /// Random headings at random positions, N = 1,000: P and M ≈ 1/√N ≈ 0.03;
+    /// both below 0.1 (> 3 standard deviations of the expected value).
+    #[test]
+    fn random_headings_are_disordered() {
+        let mut s = crate::rng::Stream::new(3, crate::rng::Purpose::Policy, 0, 0);
+        let n = 1000;
+        let pos: Vec<Vec3> = (0..n)
+            .map(|_| Vec3::new(s.range(-2.0, 2.0), s.range(-4.0, 0.0), s.range(-2.0, 2.0)))
+            .collect();
+        let head: Vec<Vec3> = (0..n)
+            .map(|_| {
+                loop {
+                    let v = Vec3::new(s.range(-1.0, 1.0), s.range(-1.0, 1.0), s.range(-1.0, 1.0));
+                    if v.length() > 0.1 && v.length() < 1.0 {
+                        break v.normalize();
+                    }
+                }
+            })
+            .collect();
+        let (p, m) = order_parameters(&pos, &head, None);
+        assert!(p < 0.1 && m < 0.1, "P {p}, M {m}");
+        assert_eq!(SchoolState::classify(p, m), SchoolState::Swarm);
+    }
+
+    #[test]
+    fn states_by_thresholds() {
+        assert_eq!(SchoolState::classify(0.1, 0.2), SchoolState::Swarm);
+        assert_eq!(SchoolState::classify(0.2, 0.8), SchoolState::Milling);
+        assert_eq!(SchoolState::classify(0.9, 0.1), SchoolState::Polarised);
+        assert_eq!(SchoolState::classify(0.5, 0.5), SchoolState::Transitional);
+        assert_eq!(SchoolState::classify(0.2, 0.5), SchoolState::Transitional);
+        assert_eq!(SchoolState::classify(0.8, 0.8), SchoolState::Transitional);
+        // The boundaries are strict.
+        assert_eq!(SchoolState::classify(0.35, 0.1), SchoolState::Transitional);
+    }
+
+    #[test]
+    fn nearest_neighbours_in_body_lengths() {
+        let pos = vec![
+            Vec3::new(0.0, -1.0, 0.0),
+            Vec3::new(0.5, -1.0, 0.0),
+            Vec3::new(2.5, -1.0, 0.0),
+        ];
+        let bl = vec![0.5, 0.25, 0.5];
+        let mut grid = SpatialGrid::new(
+            Vec3::new(-3.0, -3.0, -3.0),
+            Vec3::new(3.0, 0.0, 3.0),
+            0.4,
+            3,
+        );
+        let mut out = vec![];
+        nearest_neighbour_bl(&pos, &bl, &mut grid, &mut out);
+        assert_eq!(out, vec![1.0, 2.0, 4.0]);
+        assert!((quantile(&[1.0, 2.0, 3.0, 4.0, 5.0], 0.05) - 1.2).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,46 @@
+//! `deepfoids eval`: drive a scene with a policy and judge the school.
+
+use super::{load_scene, make_policy};
+use crate::cli::EvalArgs;
+use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
+use anyhow::{Result, bail};
+use deepfoids_env::{ConfigDirs, Env};
+use std::path::PathBuf;
+
+pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
+    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
+        bail!("--seconds must be a positive number, got {}", args.seconds);
+    }
+    let sa = &args.scene;
+    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
+    let mut env = Env::new(scene, sa.seed);
+    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env)?;
+    let out = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from(format!(
+            "runs/eval-{}-{}-s{}",
+            env.scene().id,
+            policy.name(),
+            sa.seed
+        ))
+    });
+    let eval = evaluate(&mut env, policy.as_mut(), args.seconds, |_, _| {})?;
+    let scene_id = env.scene().id.clone();
+    let name = policy.name();
+    let meta = EvalMeta {
+        scene: &scene_id,
+        policy: &name,
+        seed: sa.seed,
+        phase: sa.phase.as_str(),
+        deterministic: true,
+        seconds: eval.seconds,
+        wall_seconds: eval.wall_seconds,
+        ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
+    };
+    let summary = write_outputs(&out, &env, &eval, &meta)?;
+    print_table(&meta, &summary);
+    println!(
+        "wrote {}/{{metrics.csv, summary.json, pm.png, depth.png, trajectories.png}}",
+        out.display()
+    );
+    Ok(())
+}
