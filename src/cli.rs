@@ -34,6 +34,10 @@ pub enum Command {
     SensorView(SensorViewArgs),
     /// Judge a school: P, M, state shares, collisions, depth — CSV, JSON and plots
     Eval(EvalArgs),
+    /// Train one policy per behaviour of a scene (PPO)
+    Train(TrainCmd),
+    /// Pretrain a species in its default scene, then transfer-learn into each of its scenes
+    Pipeline(PipelineArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -63,9 +67,11 @@ fn parse_phase(s: &str) -> Result<Phase, String> {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`, `foids`, `boids`
+    /// Who acts: `random`, `foids`, `boids`, or a run folder (`runs/<id>`)
     #[arg(long, default_value = "random")]
     pub policy: String,
+    #[command(flatten)]
+    pub policy_args: PolicyArgs,
     /// Simulated seconds
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
@@ -74,19 +80,115 @@ pub struct SimulateArgs {
     pub out: Option<PathBuf>,
 }
 
+/// How a trained policy is loaded and run.
+#[derive(Args, Debug, Clone)]
+pub struct PolicyArgs {
+    /// With a run folder: load this checkpoint step instead of the final policy
+    #[arg(long, value_name = "STEP")]
+    pub checkpoint: Option<u64>,
+    /// With a run folder: sample actions instead of acting with the clipped mean
+    #[arg(long)]
+    pub stochastic: bool,
+    /// Compute backend for trained policies
+    #[arg(long, default_value = "flex", value_parser = parse_backend)]
+    pub backend: deepfoids_ppo::Backend,
+}
+
+fn parse_backend(s: &str) -> Result<deepfoids_ppo::Backend, String> {
+    s.parse()
+}
+
 #[derive(Args, Debug)]
 pub struct EvalArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `boids`, `random`
+    /// Who acts: `foids`, `boids`, `random`, or a run folder (`runs/<id>`)
     #[arg(long, default_value = "foids")]
     pub policy: String,
+    #[command(flatten)]
+    pub policy_args: PolicyArgs,
     /// Simulated seconds
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
     /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+}
+
+/// The training algorithm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Algo {
+    Ppo,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct TrainOptions {
+    /// Training algorithm
+    #[arg(long, value_enum, default_value = "ppo")]
+    pub algo: Algo,
+    /// Random seed (weights, exploration, environment)
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Folder of the runs
+    #[arg(long, default_value = "runs", value_name = "DIR")]
+    pub runs_dir: PathBuf,
+    /// Compute backend
+    #[arg(long, default_value = "flex", value_parser = parse_backend)]
+    pub backend: deepfoids_ppo::Backend,
+    /// Simulated seconds of the deterministic evaluation after training (0: none)
+    #[arg(long, default_value_t = 30.0)]
+    pub eval_seconds: f64,
+    /// No progress bar
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct TrainCmd {
+    /// Scene id or path
+    #[arg(long, value_name = "ID|PATH")]
+    pub scene: String,
+    /// Reward weights and budget of this phase
+    #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
+    pub phase: Phase,
+    /// Start from the weights of this run (transfer learning); the step count starts at 0
+    #[arg(long, value_name = "RUN")]
+    pub init_from: Option<PathBuf>,
+    /// Agent decisions to train [default: the thesis' budget for the species and phase]
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Run name [default: <algo>-<scene>-<phase>-s<seed>]
+    #[arg(long)]
+    pub run_id: Option<String>,
+    /// Continue the run from its last checkpoint
+    #[arg(long)]
+    pub resume: bool,
+    /// Replace an existing run folder
+    #[arg(long)]
+    pub force: bool,
+    #[command(flatten)]
+    pub opts: TrainOptions,
+}
+
+#[derive(Args, Debug)]
+pub struct PipelineArgs {
+    /// Species to train: its default scene, then every scene with only this species
+    #[arg(long)]
+    pub species: String,
+    /// Pretraining budget (agent decisions) [default: the thesis' budget]
+    #[arg(long)]
+    pub pretrain_steps: Option<u64>,
+    /// Transfer budget per scene [default: the thesis' budget]
+    #[arg(long)]
+    pub transfer_steps: Option<u64>,
+    /// Only these target scenes (comma-separated) [default: all of the species]
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<String>,
+    /// Run name [default: pipeline-<algo>-<species>-s<seed>]
+    #[arg(long)]
+    pub run_id: Option<String>,
+    #[command(flatten)]
+    pub opts: TrainOptions,
 }
 
 #[derive(Args, Debug)]
@@ -108,6 +210,26 @@ pub struct SensorViewArgs {
 pub enum BenchCommand {
     /// Environment speed: agent-decisions per second with random actions, sensor included
     Env(BenchEnvArgs),
+    /// Training speed: agent-steps per second end to end, and its split
+    Train(BenchTrainArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchTrainArgs {
+    /// Scene id or path
+    #[arg(long, default_value = "seabream_default", value_name = "ID|PATH")]
+    pub scene: String,
+    /// Agent decisions to train
+    #[arg(long, default_value_t = 30_000)]
+    pub steps: u64,
+    /// Training algorithm
+    #[arg(long, value_enum, default_value = "ppo")]
+    pub algo: Algo,
+    /// Compute backend
+    #[arg(long, default_value = "flex", value_parser = parse_backend)]
+    pub backend: deepfoids_ppo::Backend,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 #[derive(Args, Debug)]
@@ -145,6 +267,11 @@ pub fn run() -> Result<()> {
         Some(Command::Simulate(a)) => commands::simulate::run(&dirs, &a),
         Some(Command::SensorView(a)) => commands::sensor_view::run(&dirs, &a),
         Some(Command::Eval(a)) => commands::eval::run(&dirs, &a),
+        Some(Command::Train(a)) => commands::train::run(&dirs, &a).map(|_| ()),
+        Some(Command::Pipeline(a)) => commands::pipeline::run(&dirs, &a),
+        Some(Command::Bench {
+            what: BenchCommand::Train(a),
+        }) => commands::bench::train(&dirs, &a),
         Some(Command::Bench {
             what: BenchCommand::Env(a),
         }) => commands::bench::env(&dirs, &a),

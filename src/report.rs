@@ -148,7 +148,8 @@ fn write_csv(path: &Path, eval: &Evaluation) -> Result<()> {
             }
         )?;
     }
-    f.commit()
+    f.commit()?;
+    Ok(())
 }
 
 /// Print the short table `eval` shows.

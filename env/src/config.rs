@@ -38,11 +38,7 @@ pub enum ConfigError {
 }
 
 impl ConfigError {
-    pub(crate) fn invalid(
-        path: &Path,
-        field: impl Into<String>,
-        message: impl Into<String>,
-    ) -> Self {
+    pub fn invalid(path: &Path, field: impl Into<String>, message: impl Into<String>) -> Self {
         ConfigError::Invalid {
             path: path.to_path_buf(),
             field: field.into(),

@@ -12,6 +12,7 @@ pub mod collide;
 pub mod config;
 pub mod env;
 pub mod forces;
+pub mod io;
 pub mod kinematics;
 pub mod metrics;
 pub mod policy;
@@ -25,6 +26,6 @@ pub use env::{
     BehaviourBatch, BehaviourInfo, Env, EnvError, FishState, N_TERMS, StageTimes, StepOutput,
     TERM_NAMES, VECTOR_OBS,
 };
-pub use policy::{Policy, RandomPolicy};
+pub use policy::{Policy, PolicyError, RandomPolicy};
 pub use scene::Scene;
 pub use world::{Chase, World};

@@ -13,7 +13,7 @@
 use crate::env::{N_TERMS, StepOutput, TERM_NAMES};
 use deepfoids_sensors::SpatialGrid;
 use glam::Vec3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Polarisation `P` and milling `M` (Eq. A.3) of the fish `idx` (all if `None`).
 pub fn order_parameters(position: &[Vec3], heading: &[Vec3], idx: Option<&[usize]>) -> (f32, f32) {
@@ -45,7 +45,7 @@ pub fn order_parameters(position: &[Vec3], heading: &[Vec3], idx: Option<&[usize
 }
 
 /// The collective state of a school (Tunstrøm et al. 2013).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SchoolState {
     Swarm,
@@ -156,7 +156,7 @@ pub struct Sample {
 }
 
 /// Per-behaviour totals over a run.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct BehaviourSummary {
     pub name: String,
     pub fish: usize,
@@ -178,7 +178,7 @@ pub struct BehaviourSummary {
 }
 
 /// Everything `eval` reports, for the whole school.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Summary {
     pub seconds: f64,
     pub samples: usize,

@@ -21,6 +21,10 @@ pub enum Purpose {
     Chase = 4,
     /// Random actions of the random policy.
     Policy = 5,
+    /// Exploration noise of a learned Gaussian policy.
+    Exploration = 6,
+    /// Minibatch shuffles of a trainer.
+    Shuffle = 7,
 }
 
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
@@ -64,6 +68,14 @@ impl Stream {
     #[inline]
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.uniform()
+    }
+
+    /// A standard normal draw (Box–Muller).
+    #[inline]
+    pub fn normal(&mut self) -> f32 {
+        let u1 = 1.0 - self.uniform(); // (0, 1]
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
     }
 
     /// Uniform integer in [0, n).
@@ -116,5 +128,12 @@ mod tests {
             assert!((h as f64 - 10_000.0).abs() < 500.0, "{hist:?}");
         }
         assert!((0..1000).all(|_| s.below(3) < 3));
+        let z: Vec<f32> = (0..n).map(|_| s.normal()).collect();
+        let mean = z.iter().sum::<f32>() / n as f32;
+        let var = z.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / n as f32;
+        assert!(
+            mean.abs() < 0.02 && (var - 1.0).abs() < 0.03,
+            "{mean} {var}"
+        );
     }
 }

@@ -2,7 +2,7 @@
 //! sensor included, warm-up excluded; and where the time goes.
 
 use super::load_scene;
-use crate::cli::BenchEnvArgs;
+use crate::cli::{BenchEnvArgs, BenchTrainArgs};
 use anyhow::Result;
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy};
@@ -59,6 +59,55 @@ pub fn env(dirs: &ConfigDirs, args: &BenchEnvArgs) -> Result<()> {
         100.0 * chases / wall,
         100.0 * policy_time / wall,
         100.0 * (wall - sensing - physics - chases - policy_time) / wall
+    );
+    Ok(())
+}
+
+/// `deepfoids bench train`: PPO end to end (collection and updates) for a number
+/// of agent steps, nothing saved; prints agent-steps/s and the split.
+pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
+    let scene = load_scene(dirs, &args.scene, Phase::Pretrain)?;
+    let config = deepfoids_ppo::PpoConfig::load(dirs)?;
+    let tmp = std::env::temp_dir().join(format!("deepfoids-bench-train-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let id = scene.id.clone();
+    let fish = scene.fish_count();
+    let out = deepfoids_ppo::train(deepfoids_ppo::TrainArgs {
+        scene,
+        config,
+        run_dir: tmp.clone(),
+        run_id: "bench".into(),
+        seed: args.seed,
+        steps: Some(args.steps),
+        resume: false,
+        init_from: None,
+        backend: args.backend,
+        progress: false,
+        save: false,
+    });
+    let _ = std::fs::remove_dir_all(&tmp);
+    let out = out?;
+    let t = out.timing;
+    let secs = |d: std::time::Duration| d.as_secs_f64();
+    println!(
+        "{id}: {fish} fish, {} backend, {} threads: {} agent steps in {:.1} s",
+        args.backend.as_str(),
+        rayon::current_num_threads(),
+        out.steps_this_run,
+        out.wall_seconds
+    );
+    println!(
+        "{:.0} agent-steps/s",
+        out.steps_this_run as f64 / out.wall_seconds.max(1e-9)
+    );
+    println!(
+        "split: environment {:.1} s ({:.0} %), inference {:.1} s ({:.0} %), updates {:.1} s ({:.0} %)",
+        secs(t.env),
+        100.0 * secs(t.env) / out.wall_seconds,
+        secs(t.inference),
+        100.0 * secs(t.inference) / out.wall_seconds,
+        secs(t.update),
+        100.0 * secs(t.update) / out.wall_seconds
     );
     Ok(())
 }

@@ -14,7 +14,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env)?;
+    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &args.policy_args)?;
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "runs/eval-{}-{}-s{}",

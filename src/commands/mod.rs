@@ -2,13 +2,17 @@
 
 pub mod bench;
 pub mod eval;
+pub mod pipeline;
 pub mod scenes;
 pub mod sensor_view;
 pub mod simulate;
+pub mod train;
 
+use crate::cli::PolicyArgs;
 use anyhow::{Result, bail};
 use deepfoids_env::baselines::{Boids, BoidsConfig, Foids, FoidsConfig};
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
+use deepfoids_ppo::TrainedPolicy;
 
 /// Load a scene with its reward weights; the error names the file and field.
 pub fn load_scene(dirs: &ConfigDirs, id: &str, phase: Phase) -> Result<Scene> {
@@ -16,13 +20,15 @@ pub fn load_scene(dirs: &ConfigDirs, id: &str, phase: Phase) -> Result<Scene> {
 }
 
 /// The policy named on the command line: a scripted baseline (parameters from
-/// `configs/baselines/<name>.toml`) or random actions.
+/// `configs/baselines/<name>.toml`), random actions, or a trained run's folder.
 pub fn make_policy(
     dirs: &ConfigDirs,
     name: &str,
     seed: u64,
-    _env: &Env,
+    env: &Env,
+    opts: &PolicyArgs,
 ) -> Result<Box<dyn Policy>> {
+    let path = std::path::Path::new(name);
     match name {
         "random" => Ok(Box::new(RandomPolicy { seed })),
         "foids" => Ok(Box::new(Foids::new(
@@ -32,24 +38,56 @@ pub fn make_policy(
         "boids" => Ok(Box::new(Boids::new(BoidsConfig::load(
             &dirs.baseline("boids")?,
         )?))),
-        other => bail!("unknown policy `{other}`; allowed: random, foids, boids"),
+        _ if path.is_dir() => Ok(Box::new(TrainedPolicy::load(
+            path,
+            opts.checkpoint,
+            env,
+            opts.backend,
+            !opts.stochastic,
+            seed,
+        )?)),
+        other => bail!(
+            "unknown policy `{other}`; allowed: random, foids, boids, or a run folder (runs/<id>)"
+        ),
     }
 }
 
-/// `deepfoids` without a command: simulate the coho default scene for 60 s.
+/// Agent decisions of the built-in main job (a few minutes on 2 cores).
+pub const QUICKSTART_STEPS: u64 = 150_000;
+
+/// `deepfoids` without a command: train PPO on the seabream default scene with a
+/// short budget into `runs/quickstart-ppo-seabream_default` (replacing an earlier
+/// one), evaluate it, and print P, M and the learning curve's start and end.
 pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
     eprintln!(
-        "no command given: simulating coho_default for 60 s with random actions (see --help for the commands)"
+        "no command given: the quickstart — PPO on seabream_default for {QUICKSTART_STEPS} agent steps (see --help for the commands)"
     );
-    let args = crate::cli::SimulateArgs {
-        scene: crate::cli::SceneArgs {
-            scene: "coho_default".into(),
+    let args = crate::cli::TrainCmd {
+        scene: "seabream_default".into(),
+        phase: Phase::Pretrain,
+        init_from: None,
+        steps: Some(QUICKSTART_STEPS),
+        run_id: Some("quickstart-ppo-seabream_default".into()),
+        resume: false,
+        force: true,
+        opts: crate::cli::TrainOptions {
+            algo: crate::cli::Algo::Ppo,
             seed: 0,
-            phase: Phase::Pretrain,
+            runs_dir: "runs".into(),
+            backend: deepfoids_ppo::Backend::Flex,
+            eval_seconds: 60.0,
+            quiet: false,
         },
-        policy: "random".into(),
-        seconds: 60.0,
-        out: None,
     };
-    simulate::run(dirs, &args)
+    let t = train::run(dirs, &args)?;
+    if let Some(s) = &t.summary {
+        println!(
+            "quickstart done: P {:.3}, M {:.3} ({}); run folder {}",
+            s.p_mean,
+            s.m_mean,
+            s.dominant_state.as_str(),
+            t.run_dir.display()
+        );
+    }
+    Ok(())
 }

@@ -52,7 +52,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env)?;
+    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &args.policy_args)?;
     let mut actions = action_buffers(&env);
     let ticks = (args.seconds / env.tick_seconds()).round().max(1.0) as u64;
     let fastest = env

@@ -1,0 +1,152 @@
+//! PPO hyperparameters (thesis Table 4.4, SPEC §8), read from
+//! `configs/train/ppo.toml`. A plain serde struct: unknown keys are rejected
+//! and missing keys take the documented defaults.
+
+use deepfoids_env::config::{ConfigError, read_toml};
+use deepfoids_env::{ConfigDirs, Phase, Scene};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// How the learning rate changes over the budget.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Schedule {
+    /// From `learning_rate` to 0 at the end of the budget (ML-Agents' "linear").
+    Linear,
+    Constant,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PpoConfig {
+    /// Adam learning rate at the start. Table 4.4: 0.001.
+    pub learning_rate: f64,
+    /// Learning-rate schedule. Table 4.4: linear decay.
+    pub lr_schedule: Schedule,
+    /// Discount factor γ. Table 4.4: 0.99.
+    pub gamma: f32,
+    /// GAE λ. Table 4.4: 0.95.
+    pub gae_lambda: f32,
+    /// Clip range ε of the surrogate objective. Table 4.4: 0.2.
+    pub clip_epsilon: f32,
+    /// Value-loss coefficient c. Table 4.4: 0.5.
+    pub value_coef: f32,
+    /// Entropy coefficient β. Table 4.4: 0.0005.
+    pub entropy_coef: f32,
+    /// Agent decisions collected per update, per behaviour. Table 4.4: 10240.
+    pub buffer_size: usize,
+    /// Minibatch size. Table 4.4: 1024.
+    pub batch_size: usize,
+    /// Passes over the buffer per update. Table 4.4: 3.
+    pub epochs: usize,
+    /// Trajectories are cut and bootstrapped every this many decisions. Table 4.4: 64.
+    pub time_horizon: usize,
+    /// Global gradient-norm clip, applied to the actor's and the critic's parameters separately. 0.5.
+    pub max_grad_norm: f32,
+    /// Normalise advantages per minibatch (mean 0, std 1). true.
+    pub normalize_advantages: bool,
+    /// Divide rewards by the running std of the discounted return before GAE. true.
+    pub normalize_rewards: bool,
+    /// Initial log-std of the Gaussian policy. −1.0986 = ln(1/3): ML-Agents feeds
+    /// `clamp(a, −3, 3)/3` to the environment, so its initial σ = 1 is σ ≈ 0.33 in
+    /// environment units; with σ = 1 here, random speed and pitch changes make
+    /// living so costly that crashing (−300, episode over) pays.
+    pub init_log_std: f32,
+    /// Width of the dense layers. SPEC §8: 128.
+    pub hidden: usize,
+    /// Dense Swish layers. SPEC §8: 4.
+    pub layers: usize,
+    /// Adam ε (PyTorch's 1e−8; Burn's default is 1e−5).
+    pub adam_epsilon: f64,
+    /// Save a checkpoint every this many agent decisions. 100,000.
+    pub checkpoint_every: u64,
+    /// Checkpoints kept (older ones are deleted). 5.
+    pub keep_checkpoints: usize,
+    /// Agent decisions per species, `[pretraining, transfer]` (thesis §4.5.2).
+    pub budgets: BTreeMap<String, [u64; 2]>,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        Self {
+            learning_rate: 0.001,
+            lr_schedule: Schedule::Linear,
+            gamma: 0.99,
+            gae_lambda: 0.95,
+            clip_epsilon: 0.2,
+            value_coef: 0.5,
+            entropy_coef: 0.0005,
+            buffer_size: 10240,
+            batch_size: 1024,
+            epochs: 3,
+            time_horizon: 64,
+            max_grad_norm: 0.5,
+            normalize_advantages: true,
+            normalize_rewards: true,
+            init_log_std: -1.0986,
+            hidden: 128,
+            layers: 4,
+            adam_epsilon: 1e-8,
+            checkpoint_every: 100_000,
+            keep_checkpoints: 5,
+            budgets: BTreeMap::from([
+                ("coho".to_string(), [4_000_000, 1_000_000]),
+                ("yellowtail".to_string(), [2_000_000, 2_000_000]),
+                ("seabream".to_string(), [2_000_000, 2_000_000]),
+            ]),
+        }
+    }
+}
+
+impl PpoConfig {
+    /// `train/ppo.toml` under the config root.
+    pub fn load(dirs: &ConfigDirs) -> Result<Self, ConfigError> {
+        let path = dirs.root.join("train").join("ppo.toml");
+        let cfg: PpoConfig = read_toml(&path)?;
+        cfg.validate(&path)?;
+        Ok(cfg)
+    }
+
+    fn validate(&self, path: &std::path::Path) -> Result<(), ConfigError> {
+        let bad = |field: &str, msg: &str| Err(ConfigError::invalid(path, field, msg));
+        if !(self.learning_rate > 0.0 && self.learning_rate <= 1.0) {
+            return bad("learning_rate", "must lie in (0, 1]");
+        }
+        if !(0.0..=1.0).contains(&self.gamma) || !(0.0..=1.0).contains(&self.gae_lambda) {
+            return bad("gamma", "gamma and gae_lambda must lie in [0, 1]");
+        }
+        if self.clip_epsilon.is_nan() || self.clip_epsilon <= 0.0 {
+            return bad("clip_epsilon", "must be positive");
+        }
+        if self.batch_size == 0 || self.buffer_size < self.batch_size {
+            return bad(
+                "buffer_size",
+                "buffer_size must be at least batch_size, and batch_size at least 1",
+            );
+        }
+        if self.epochs == 0 || self.time_horizon == 0 || self.hidden == 0 {
+            return bad(
+                "epochs",
+                "epochs, time_horizon and hidden must be at least 1",
+            );
+        }
+        if self.max_grad_norm.is_nan() || self.max_grad_norm <= 0.0 {
+            return bad("max_grad_norm", "must be positive");
+        }
+        Ok(())
+    }
+
+    /// The thesis' budget for a scene and phase: the largest of its species' budgets.
+    pub fn budget(&self, scene: &Scene, phase: Phase) -> u64 {
+        let k = match phase {
+            Phase::Pretrain => 0,
+            Phase::Transfer => 1,
+        };
+        scene
+            .species_names()
+            .iter()
+            .filter_map(|s| self.budgets.get(s).map(|b| b[k]))
+            .max()
+            .unwrap_or(2_000_000)
+    }
+}

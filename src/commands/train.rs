@@ -1,0 +1,195 @@
+//! `deepfoids train`: train one policy per behaviour of a scene, then evaluate it.
+
+use super::load_scene;
+use crate::cli::{Algo, TrainCmd, TrainOptions};
+use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
+use anyhow::{Context, Result, bail};
+use deepfoids_env::metrics::Summary;
+use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
+use deepfoids_ppo::{PpoConfig, TrainArgs, TrainOutcome, TrainedPolicy};
+use std::path::{Path, PathBuf};
+
+/// A finished training command.
+pub struct Trained {
+    pub run_dir: PathBuf,
+    pub outcome: TrainOutcome,
+    pub summary: Option<Summary>,
+}
+
+pub fn run(dirs: &ConfigDirs, args: &TrainCmd) -> Result<Trained> {
+    let scene = load_scene(dirs, &args.scene, args.phase)?;
+    let run_id = args.run_id.clone().unwrap_or_else(|| {
+        format!(
+            "{}-{}-{}-s{}",
+            algo_name(args.opts.algo),
+            scene.id,
+            args.phase.as_str(),
+            args.opts.seed
+        )
+    });
+    let run_dir = args.opts.runs_dir.join(&run_id);
+    prepare_run_dir(&run_dir, args.resume, args.force)?;
+    train_scene(
+        dirs,
+        scene,
+        &run_dir,
+        &run_id,
+        args.steps,
+        args.init_from.clone(),
+        args.resume,
+        &args.opts,
+    )
+}
+
+pub fn algo_name(a: Algo) -> &'static str {
+    match a {
+        Algo::Ppo => "ppo",
+    }
+}
+
+/// Refuse to overwrite a run by accident (ML-Agents' behaviour).
+pub fn prepare_run_dir(run_dir: &Path, resume: bool, force: bool) -> Result<()> {
+    if resume {
+        if !run_dir.is_dir() {
+            bail!("--resume: there is no run folder {}", run_dir.display());
+        }
+    } else if run_dir.exists() {
+        if force {
+            std::fs::remove_dir_all(run_dir)
+                .with_context(|| format!("cannot remove {}", run_dir.display()))?;
+        } else {
+            bail!(
+                "the run folder {} exists; use --resume to continue it, --force to replace it, or another --run-id",
+                run_dir.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Train `scene` into `run_dir`, write the resolved configuration, and evaluate the result.
+#[allow(clippy::too_many_arguments)]
+pub fn train_scene(
+    dirs: &ConfigDirs,
+    scene: Scene,
+    run_dir: &Path,
+    run_id: &str,
+    steps: Option<u64>,
+    init_from: Option<PathBuf>,
+    resume: bool,
+    opts: &TrainOptions,
+) -> Result<Trained> {
+    let config = PpoConfig::load(dirs)?;
+    std::fs::create_dir_all(run_dir)
+        .with_context(|| format!("cannot create {}", run_dir.display()))?;
+    if !resume {
+        let mut resolved = toml::Table::new();
+        let mut run = toml::Table::new();
+        run.insert("run_id".into(), run_id.into());
+        run.insert("algo".into(), algo_name(opts.algo).into());
+        run.insert("scene".into(), scene.id.clone().into());
+        run.insert("phase".into(), scene.phase.as_str().into());
+        run.insert("seed".into(), (opts.seed as i64).into());
+        run.insert(
+            "steps".into(),
+            (steps.unwrap_or_else(|| config.budget(&scene, scene.phase)) as i64).into(),
+        );
+        run.insert("backend".into(), opts.backend.as_str().into());
+        if let Some(i) = &init_from {
+            run.insert("init_from".into(), i.display().to_string().into());
+        }
+        resolved.insert("run".into(), run.into());
+        resolved.insert("ppo".into(), toml::Value::try_from(&config)?);
+        resolved.insert("scene".into(), toml::Value::try_from(&scene)?);
+        crate::io::write_atomic(
+            run_dir.join("config.toml"),
+            toml::to_string_pretty(&resolved)?.as_bytes(),
+        )?;
+    }
+    eprintln!(
+        "training {} on {} ({} phase) into {}",
+        algo_name(opts.algo),
+        scene.id,
+        scene.phase.as_str(),
+        run_dir.display()
+    );
+    let outcome = deepfoids_ppo::train(TrainArgs {
+        scene: scene.clone(),
+        config,
+        run_dir: run_dir.to_path_buf(),
+        run_id: run_id.to_string(),
+        seed: opts.seed,
+        steps,
+        resume,
+        init_from,
+        backend: opts.backend,
+        progress: !opts.quiet,
+        save: true,
+    })?;
+    print_training(&outcome);
+    let summary = if opts.eval_seconds > 0.0 {
+        Some(evaluate_run(scene, run_dir, opts)?)
+    } else {
+        None
+    };
+    Ok(Trained {
+        run_dir: run_dir.to_path_buf(),
+        outcome,
+        summary,
+    })
+}
+
+/// The mean of the first and of the last `k` points of a curve.
+pub fn curve_ends(curve: &[(u64, f64)], k: usize) -> Option<(f64, f64)> {
+    if curve.is_empty() {
+        return None;
+    }
+    let k = k.min(curve.len().div_ceil(2)).max(1);
+    let mean = |s: &[(u64, f64)]| s.iter().map(|x| x.1).sum::<f64>() / s.len() as f64;
+    Some((mean(&curve[..k]), mean(&curve[curve.len() - k..])))
+}
+
+fn print_training(o: &TrainOutcome) {
+    let t = &o.timing;
+    let total = (t.env + t.inference + t.update).as_secs_f64().max(1e-9);
+    println!(
+        "trained {} agent steps in {:.0} s ({:.0} agent-steps/s): environment {:.0} %, inference {:.0} %, updates {:.0} %",
+        o.steps_this_run,
+        o.wall_seconds,
+        o.steps_this_run as f64 / o.wall_seconds.max(1e-9),
+        100.0 * t.env.as_secs_f64() / total,
+        100.0 * t.inference.as_secs_f64() / total,
+        100.0 * t.update.as_secs_f64() / total
+    );
+    if let Some((a, b)) = curve_ends(&o.curve, 3) {
+        println!(
+            "learning curve (mean reward per decision): start {a:.3} → end {b:.3} over {} updates",
+            o.curve.len()
+        );
+    }
+    if let Some((a, b)) = curve_ends(&o.episode_curve, 3) {
+        println!("cumulative reward per episode: start {a:.1} → end {b:.1}");
+    }
+}
+
+/// Evaluate a run's final policy deterministically; writes `<run>/eval/`.
+pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
+    let mut env = Env::new(scene, opts.seed.wrapping_add(1_000_003));
+    let mut policy = TrainedPolicy::load(run_dir, None, &env, opts.backend, true, opts.seed)?;
+    let eval = evaluate(&mut env, &mut policy, opts.eval_seconds, |_, _| {})?;
+    let scene_id = env.scene().id.clone();
+    let name = policy.name();
+    let meta = EvalMeta {
+        scene: &scene_id,
+        policy: &name,
+        seed: opts.seed,
+        phase: env.scene().phase.as_str(),
+        deterministic: true,
+        seconds: eval.seconds,
+        wall_seconds: eval.wall_seconds,
+        ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
+    };
+    let summary = write_outputs(&run_dir.join("eval"), &env, &eval, &meta)?;
+    print_table(&meta, &summary);
+    Ok(summary)
+}
