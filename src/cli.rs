@@ -38,6 +38,8 @@ pub enum Command {
     Train(TrainCmd),
     /// Pretrain a species in its default scene, then transfer-learn into each of its scenes
     Pipeline(PipelineArgs),
+    /// Export a trained policy to ONNX (Unity ML-Agents' interface)
+    Export(ExportArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -67,7 +69,7 @@ fn parse_phase(s: &str) -> Result<Phase, String> {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`, `foids`, `boids`, or a run folder (`runs/<id>`)
+    /// Who acts: `random`, `foids`, `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "random")]
     pub policy: String,
     #[command(flatten)]
@@ -102,7 +104,7 @@ fn parse_backend(s: &str) -> Result<deepfoids_ppo::Backend, String> {
 pub struct EvalArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `boids`, `random`, or a run folder (`runs/<id>`)
+    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[command(flatten)]
@@ -171,6 +173,22 @@ pub struct TrainCmd {
 }
 
 #[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// Run folder
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+    /// Export this checkpoint step instead of the final policy
+    #[arg(long, value_name = "STEP")]
+    pub checkpoint: Option<u64>,
+    /// Behaviour to export (required when the run has several)
+    #[arg(long, value_name = "NAME")]
+    pub behaviour: Option<String>,
+    /// Output file
+    #[arg(long, default_value = "policy.onnx", value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+#[derive(Args, Debug)]
 pub struct PipelineArgs {
     /// Species to train: its default scene, then every scene with only this species
     #[arg(long)]
@@ -212,6 +230,21 @@ pub enum BenchCommand {
     Env(BenchEnvArgs),
     /// Training speed: agent-steps per second end to end, and its split
     Train(BenchTrainArgs),
+    /// Inference speed of a trained policy: Burn against its ONNX export through tract
+    Policy(BenchPolicyArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchPolicyArgs {
+    /// Run folder of the policy
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+    /// Agents per forward pass
+    #[arg(long, default_value_t = 1000)]
+    pub agents: usize,
+    /// Timed repetitions
+    #[arg(long, default_value_t = 10)]
+    pub reps: usize,
 }
 
 #[derive(Args, Debug)]
@@ -269,11 +302,15 @@ pub fn run() -> Result<()> {
         Some(Command::Eval(a)) => commands::eval::run(&dirs, &a),
         Some(Command::Train(a)) => commands::train::run(&dirs, &a).map(|_| ()),
         Some(Command::Pipeline(a)) => commands::pipeline::run(&dirs, &a),
+        Some(Command::Export(a)) => commands::export::run(&a),
         Some(Command::Bench {
             what: BenchCommand::Train(a),
         }) => commands::bench::train(&dirs, &a),
         Some(Command::Bench {
             what: BenchCommand::Env(a),
         }) => commands::bench::env(&dirs, &a),
+        Some(Command::Bench {
+            what: BenchCommand::Policy(a),
+        }) => commands::bench::policy(&a),
     }
 }

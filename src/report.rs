@@ -271,7 +271,7 @@ fn plot_pm(path: &Path, eval: &Evaluation, s: &Summary, title: &str) -> Result<(
             });
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::MiddleRight)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK.mix(0.3))
             .label_font((FONT, 14))

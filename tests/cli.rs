@@ -242,3 +242,112 @@ fn simulate_takes_the_baselines_too() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("policy foids"));
 }
+
+/// train (a few decisions) → export → eval with the .onnx (tract) and with the run
+/// folder (Burn): the same seed drives the same school.
+#[test]
+fn train_export_and_eval_through_onnx() {
+    let runs = temp("train");
+    let o = deepfoids(&[
+        "train",
+        "--scene",
+        "seabream_default",
+        "--steps",
+        "600",
+        "--seed",
+        "5",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "tiny",
+        "--eval-seconds",
+        "0",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let run = runs.join("tiny");
+    for f in [
+        "config.toml",
+        "scalars.csv",
+        "final/state.json",
+        "final/seabream_regular.model.bpk",
+    ] {
+        assert!(run.join(f).exists(), "{f} missing");
+    }
+    // Refuses to overwrite without --resume/--force.
+    let again = deepfoids(&[
+        "train",
+        "--scene",
+        "seabream_default",
+        "--steps",
+        "600",
+        "--seed",
+        "5",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "tiny",
+    ]);
+    assert!(
+        !again.status.success() && text(&again).contains("--resume"),
+        "{}",
+        text(&again)
+    );
+
+    let onnx = runs.join("policy.onnx");
+    let o = deepfoids(&[
+        "export",
+        "--run",
+        run.to_str().unwrap(),
+        "--out",
+        onnx.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("opset 9"), "{}", text(&o));
+    let mut pm = vec![];
+    for policy in [onnx.to_str().unwrap(), run.to_str().unwrap()] {
+        let out = runs.join(format!("eval-{}", pm.len()));
+        let o = deepfoids(&[
+            "eval",
+            "--scene",
+            "seabream_default",
+            "--policy",
+            policy,
+            "--seconds",
+            "3",
+            "--seed",
+            "9",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        pm.push((
+            json["summary"]["p_mean"].as_f64().unwrap(),
+            json["summary"]["m_mean"].as_f64().unwrap(),
+        ));
+    }
+    assert!(
+        (pm[0].0 - pm[1].0).abs() < 1e-3 && (pm[0].1 - pm[1].1).abs() < 1e-3,
+        "onnx {:?} vs burn {:?}",
+        pm[0],
+        pm[1]
+    );
+    // A seabream policy cannot drive a coho scene.
+    let o = deepfoids(&[
+        "eval",
+        "--scene",
+        "coho_small",
+        "--policy",
+        onnx.to_str().unwrap(),
+        "--seconds",
+        "1",
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("seabream policy"),
+        "{}",
+        text(&o)
+    );
+}

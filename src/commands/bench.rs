@@ -2,7 +2,7 @@
 //! sensor included, warm-up excluded; and where the time goes.
 
 use super::load_scene;
-use crate::cli::{BenchEnvArgs, BenchTrainArgs};
+use crate::cli::{BenchEnvArgs, BenchPolicyArgs, BenchTrainArgs};
 use anyhow::Result;
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy};
@@ -108,6 +108,83 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
         100.0 * secs(t.inference) / out.wall_seconds,
         secs(t.update),
         100.0 * secs(t.update) / out.wall_seconds
+    );
+    Ok(())
+}
+
+/// `deepfoids bench policy`: deterministic actions for `agents` observations per
+/// call, Burn (flex, GEMM convolutions) against the run's ONNX export in tract;
+/// also the largest difference between the two.
+pub fn policy(args: &BenchPolicyArgs) -> Result<()> {
+    use burn::prelude::*;
+    use deepfoids_ppo::checkpoint::{RunState, policy_dir};
+    use deepfoids_ppo::model::{ActorCriticConfig, BodyConfig};
+    let dir = policy_dir(&args.run, None)?;
+    let state = RunState::load(&dir)?;
+    let b = state
+        .behaviours
+        .first()
+        .ok_or_else(|| anyhow::anyhow!("the run has no behaviours"))?;
+    let dev = Device::flex();
+    let cfg = ActorCriticConfig::new().with_body(
+        BodyConfig::new()
+            .with_hidden(state.hidden)
+            .with_layers(state.layers),
+    );
+    let model =
+        deepfoids_ppo::train::load_weights(&dir, &state, &b.name, &b.species, cfg.init(&dev))?;
+    let onnx_path =
+        std::env::temp_dir().join(format!("deepfoids-bench-{}.onnx", std::process::id()));
+    let meta = deepfoids_onnx::Metadata {
+        species: b.species.clone(),
+        behaviour: b.name.clone(),
+        ..Default::default()
+    };
+    std::fs::write(&onnx_path, deepfoids_onnx::export_actor(&model, &meta))?;
+    let tract = deepfoids_onnx::OnnxPolicy::load(&onnx_path, false)?;
+    let _ = std::fs::remove_file(&onnx_path);
+    let n = args.agents;
+    let mut s = deepfoids_env::rng::Stream::new(1, deepfoids_env::rng::Purpose::Policy, 0, 0);
+    let grids: Vec<f32> = (0..n * deepfoids_sensors::STACKED_LEN)
+        .map(|_| if s.uniform() < 0.3 { s.uniform() } else { 0.0 })
+        .collect();
+    let vectors: Vec<f32> = (0..n * 6).map(|_| s.range(-1.0, 1.0)).collect();
+    let burn_run = || -> Vec<f32> {
+        let g = Tensor::<4>::from_data(TensorData::new(grids.clone(), [n, 18, 20, 34]), &dev);
+        let v = Tensor::<2>::from_data(TensorData::new(vectors.clone(), [n, 6]), &dev);
+        model
+            .actor(g, v)
+            .0
+            .clamp(-1.0, 1.0)
+            .into_data()
+            .try_into_vec::<f32>()
+            .expect("f32")
+    };
+    let (a, b2) = (burn_run(), tract.run(&grids, &vectors, n)?);
+    let diff = a
+        .iter()
+        .zip(&b2)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max);
+    let time = |f: &mut dyn FnMut()| {
+        let t = Instant::now();
+        for _ in 0..args.reps {
+            f();
+        }
+        t.elapsed().as_secs_f64() / args.reps as f64
+    };
+    let t_burn = time(&mut || {
+        burn_run();
+    });
+    let t_tract = time(&mut || {
+        tract.run(&grids, &vectors, n).expect("tract runs");
+    });
+    println!(
+        "{n} agents per call, {} threads: Burn (flex) {:.1} ms, tract {:.1} ms per call; tract/Burn time ratio {:.2}; max |Δaction| {diff:.2e}",
+        rayon::current_num_threads(),
+        t_burn * 1e3,
+        t_tract * 1e3,
+        t_tract / t_burn
     );
     Ok(())
 }

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod eval;
+pub mod export;
 pub mod pipeline;
 pub mod scenes;
 pub mod sensor_view;
@@ -38,6 +39,11 @@ pub fn make_policy(
         "boids" => Ok(Box::new(Boids::new(BoidsConfig::load(
             &dirs.baseline("boids")?,
         )?))),
+        _ if path.is_file() && path.extension().is_some_and(|e| e == "onnx") => {
+            let p = deepfoids_onnx::OnnxPolicy::load(path, opts.stochastic)?;
+            deepfoids_onnx::check_species(&p, env)?;
+            Ok(Box::new(p))
+        }
         _ if path.is_dir() => Ok(Box::new(TrainedPolicy::load(
             path,
             opts.checkpoint,
@@ -47,7 +53,7 @@ pub fn make_policy(
             seed,
         )?)),
         other => bail!(
-            "unknown policy `{other}`; allowed: random, foids, boids, or a run folder (runs/<id>)"
+            "unknown policy `{other}`; allowed: random, foids, boids, a run folder (runs/<id>) or a .onnx file"
         ),
     }
 }

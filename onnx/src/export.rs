@@ -1,0 +1,347 @@
+//! The actor of SPEC §8 as an ONNX graph with Unity ML-Agents' (2.x) interface.
+//!
+//! Inputs: `obs_0` — the stacked grid `[batch, 18, 20, 34]`; `obs_1` — the vector
+//! observation `[batch, 6]`; `batch` is a dynamic axis. Outputs:
+//! * `version_number` `[1]` = 3, `memory_size` `[1]` = 0,
+//!   `continuous_action_output_shape` `[1]` = 3 — float constants (initializers,
+//!   passed through Identity nodes), as ML-Agents' exporter writes them;
+//! * `continuous_actions` `[batch, 3]` — sampled: `clip(μ + σ·ε, −1, 1)`,
+//!   ε from `RandomNormalLike`;
+//! * `deterministic_continuous_actions` `[batch, 3]` — `clip(μ, −1, 1)`.
+//!
+//! Opset 9: what ML-Agents exports and Unity's Barracuda loads (Sentis reads
+//! opsets 7–15). Swish is `x · sigmoid(x)`; Burn's `Linear` weights are
+//! `[in, out]`, so `Gemm` takes them untransposed; convolution weights are
+//! `[out, in, kh, kw]` in both. Metadata: species, scene, algorithm, training
+//! step, behaviour and the observation and action layouts.
+
+use crate::proto::*;
+use burn::nn::Linear;
+use burn::nn::conv::Conv2d;
+use burn::prelude::*;
+use deepfoids_ppo::model::{ACTIONS, ActorCritic};
+use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
+
+/// The ONNX operator set the graph uses.
+pub const OPSET: i64 = 9;
+/// IR version matching opset 9 (ONNX 1.4).
+pub const IR_VERSION: i64 = 4;
+/// ML-Agents' `MODEL_EXPORT_VERSION`.
+pub const MODEL_EXPORT_VERSION: f32 = 3.0;
+
+/// What the file says about the policy.
+#[derive(Clone, Debug, Default)]
+pub struct Metadata {
+    pub species: String,
+    pub behaviour: String,
+    pub scene: String,
+    pub algorithm: String,
+    pub training_step: u64,
+    pub run: String,
+}
+
+/// The observation layout recorded in the file.
+pub const OBSERVATION_LAYOUT: &str = "obs_0: [batch, 18, 20, 34] (C, H, W): 3 stacked frames, oldest first, of 6 channels [proximity = 1 - distance/d_sense, fish, net, water surface, obstacle, chase partner] over 20 elevation rows (+90° to -90°, 9° each) x 34 azimuth columns (-170° to +170°, 10° each, positive to the fish's right); obs_1: [batch, 6] = [u_x, u_y, u_z (own forward minus the forward of the nearest neighbour in front, local frame: +x left, +y up, +z forward), depth / cage height, aggressor, target]";
+/// The action layout recorded in the file.
+pub const ACTION_LAYOUT: &str = "[batch, 3] in [-1, 1]: [speed change / 4.1 BL/s, pitch change / 20° (positive: nose down), yaw change / 20° (positive: towards local +x, the fish's left)] per decision";
+
+struct Builder {
+    nodes: Vec<NodeProto>,
+    init: Vec<TensorProto>,
+}
+
+fn tensor(name: &str, dims: &[usize], values: &[f32]) -> TensorProto {
+    TensorProto {
+        dims: dims.iter().map(|&d| d as i64).collect(),
+        data_type: data_type::FLOAT,
+        name: name.into(),
+        raw_data: values.iter().flat_map(|v| v.to_le_bytes()).collect(),
+    }
+}
+
+fn ints(name: &str, v: &[i64]) -> AttributeProto {
+    AttributeProto {
+        name: name.into(),
+        ints: v.to_vec(),
+        r#type: attribute_type::INTS,
+        ..Default::default()
+    }
+}
+
+fn int(name: &str, v: i64) -> AttributeProto {
+    AttributeProto {
+        name: name.into(),
+        i: Some(v),
+        r#type: attribute_type::INT,
+        ..Default::default()
+    }
+}
+
+fn float(name: &str, v: f32) -> AttributeProto {
+    AttributeProto {
+        name: name.into(),
+        f: Some(v),
+        r#type: attribute_type::FLOAT,
+        ..Default::default()
+    }
+}
+
+fn values<const D: usize>(t: Tensor<D>) -> (Vec<usize>, Vec<f32>) {
+    let dims = t.dims().to_vec();
+    (
+        dims,
+        t.into_data().try_into_vec::<f32>().expect("f32 parameters"),
+    )
+}
+
+impl Builder {
+    fn node(
+        &mut self,
+        op: &str,
+        name: &str,
+        inputs: &[&str],
+        output: &str,
+        attrs: Vec<AttributeProto>,
+    ) -> String {
+        self.nodes.push(NodeProto {
+            input: inputs.iter().map(|s| s.to_string()).collect(),
+            output: vec![output.to_string()],
+            name: name.into(),
+            op_type: op.into(),
+            attribute: attrs,
+            domain: String::new(),
+        });
+        output.to_string()
+    }
+
+    fn constant<const D: usize>(&mut self, name: &str, t: Tensor<D>) -> String {
+        let (dims, v) = values(t);
+        self.init.push(tensor(name, &dims, &v));
+        name.to_string()
+    }
+
+    fn conv(
+        &mut self,
+        prefix: &str,
+        conv: &Conv2d,
+        input: &str,
+        kernel: i64,
+        stride: i64,
+    ) -> String {
+        let w = self.constant(&format!("{prefix}.weight"), conv.weight.val());
+        let mut inputs = vec![input.to_string(), w];
+        if let Some(b) = &conv.bias {
+            inputs.push(self.constant(&format!("{prefix}.bias"), b.val()));
+        }
+        let refs: Vec<&str> = inputs.iter().map(String::as_str).collect();
+        let attrs = vec![
+            ints("kernel_shape", &[kernel, kernel]),
+            ints("strides", &[stride, stride]),
+            int("group", 1),
+        ];
+        self.node("Conv", prefix, &refs, &format!("{prefix}.out"), attrs)
+    }
+
+    fn gemm(&mut self, prefix: &str, linear: &Linear, input: &str) -> String {
+        let w = self.constant(&format!("{prefix}.weight"), linear.weight.val());
+        let b = match &linear.bias {
+            Some(b) => self.constant(&format!("{prefix}.bias"), b.val()),
+            None => {
+                let [_, out] = linear.weight.val().dims();
+                self.init
+                    .push(tensor(&format!("{prefix}.bias"), &[out], &vec![0.0; out]));
+                format!("{prefix}.bias")
+            }
+        };
+        let attrs = vec![float("alpha", 1.0), float("beta", 1.0)];
+        self.node(
+            "Gemm",
+            prefix,
+            &[input, &w, &b],
+            &format!("{prefix}.out"),
+            attrs,
+        )
+    }
+
+    fn leaky(&mut self, prefix: &str, input: &str, alpha: f32) -> String {
+        self.node(
+            "LeakyRelu",
+            prefix,
+            &[input],
+            &format!("{prefix}.out"),
+            vec![float("alpha", alpha)],
+        )
+    }
+}
+
+fn value_info(name: &str, dims: &[Result<i64, &str>]) -> ValueInfoProto {
+    ValueInfoProto {
+        name: name.into(),
+        r#type: Some(TypeProto {
+            tensor_type: Some(TypeProtoTensor {
+                elem_type: data_type::FLOAT,
+                shape: Some(TensorShapeProto {
+                    dim: dims
+                        .iter()
+                        .map(|d| Dimension {
+                            value: Some(match d {
+                                Ok(v) => DimensionValue::DimValue(*v),
+                                Err(p) => DimensionValue::DimParam(p.to_string()),
+                            }),
+                        })
+                        .collect(),
+                }),
+            }),
+        }),
+        doc_string: String::new(),
+    }
+}
+
+/// The actor of `model` as an ONNX model (protobuf bytes).
+pub fn export_actor(model: &ActorCritic, meta: &Metadata) -> Vec<u8> {
+    let slope = 0.01f32;
+    let body = &model.actor_body;
+    let mut b = Builder {
+        nodes: vec![],
+        init: vec![],
+    };
+    let x = b.conv("conv1", &body.conv1, "obs_0", 8, 4);
+    let x = b.leaky("conv1.act", &x, slope);
+    let x = b.conv("conv2", &body.conv2, &x, 4, 2);
+    let x = b.leaky("conv2.act", &x, slope);
+    let x = b.node(
+        "Flatten",
+        "flatten",
+        &[&x],
+        "flatten.out",
+        vec![int("axis", 1)],
+    );
+    let x = b.gemm("fc_grid", &body.fc_grid, &x);
+    let x = b.leaky("fc_grid.act", &x, slope);
+    let mut x = b.node(
+        "Concat",
+        "concat",
+        &[&x, "obs_1"],
+        "concat.out",
+        vec![int("axis", 1)],
+    );
+    for (k, layer) in body.trunk.iter().enumerate() {
+        let z = b.gemm(&format!("trunk.{k}"), layer, &x);
+        let s = b.node(
+            "Sigmoid",
+            &format!("trunk.{k}.sigmoid"),
+            &[&z],
+            &format!("trunk.{k}.sigmoid.out"),
+            vec![],
+        );
+        x = b.node(
+            "Mul",
+            &format!("trunk.{k}.swish"),
+            &[&z, &s],
+            &format!("trunk.{k}.swish.out"),
+            vec![],
+        );
+    }
+    let mean = b.gemm("actor_mean", &model.actor_mean, &x);
+    let clip = |lo: f32, hi: f32| vec![float("min", lo), float("max", hi)];
+    b.node(
+        "Clip",
+        "deterministic",
+        &[&mean],
+        "deterministic_continuous_actions",
+        clip(-1.0, 1.0),
+    );
+    let log_std = b.constant("log_std", model.log_std.val());
+    let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
+    // tract picks the distribution from the node's name: it must start with
+    // "RandomNormal" and end with "Like".
+    let eps = b.node(
+        "RandomNormalLike",
+        "RandomNormalLike",
+        &[&mean],
+        "epsilon",
+        vec![float("mean", 0.0), float("scale", 1.0)],
+    );
+    let noise = b.node("Mul", "noise", &[&eps, &std], "noise.out", vec![]);
+    let sample = b.node("Add", "sample", &[&mean, &noise], "sample.out", vec![]);
+    b.node(
+        "Clip",
+        "sampled",
+        &[&sample],
+        "continuous_actions",
+        clip(-1.0, 1.0),
+    );
+    for (name, value) in [
+        ("version_number", MODEL_EXPORT_VERSION),
+        ("memory_size", 0.0),
+        ("continuous_action_output_shape", ACTIONS as f32),
+    ] {
+        b.init
+            .push(tensor(&format!("{name}.value"), &[1], &[value]));
+        b.node("Identity", name, &[&format!("{name}.value")], name, vec![]);
+    }
+    let batch = Err("batch");
+    let graph = GraphProto {
+        node: b.nodes,
+        name: format!("deepfoids_{}", meta.behaviour),
+        initializer: b.init,
+        doc_string:
+            "DeepFoids actor (SPEC §8): simple visual encoder, 4 x 128 Swish, Gaussian head".into(),
+        input: vec![
+            value_info(
+                "obs_0",
+                &[
+                    batch,
+                    Ok(STACKED_CHANNELS as i64),
+                    Ok(EL_CELLS as i64),
+                    Ok(AZ_CELLS as i64),
+                ],
+            ),
+            value_info("obs_1", &[batch, Ok(deepfoids_env::VECTOR_OBS as i64)]),
+        ],
+        output: vec![
+            value_info("version_number", &[Ok(1)]),
+            value_info("memory_size", &[Ok(1)]),
+            value_info("continuous_actions", &[batch, Ok(ACTIONS as i64)]),
+            value_info("continuous_action_output_shape", &[Ok(1)]),
+            value_info(
+                "deterministic_continuous_actions",
+                &[batch, Ok(ACTIONS as i64)],
+            ),
+        ],
+    };
+    let props = [
+        ("species", meta.species.clone()),
+        ("behaviour", meta.behaviour.clone()),
+        ("scene", meta.scene.clone()),
+        ("algorithm", meta.algorithm.clone()),
+        ("training_step", meta.training_step.to_string()),
+        ("run", meta.run.clone()),
+        ("observation_layout", OBSERVATION_LAYOUT.to_string()),
+        ("action_layout", ACTION_LAYOUT.to_string()),
+    ];
+    ModelProto {
+        ir_version: IR_VERSION,
+        producer_name: "deepfoids".into(),
+        producer_version: env!("CARGO_PKG_VERSION").into(),
+        domain: String::new(),
+        model_version: 1,
+        doc_string: format!(
+            "{} policy for {} ({}), step {}",
+            meta.algorithm, meta.behaviour, meta.scene, meta.training_step
+        ),
+        graph: Some(graph),
+        opset_import: vec![OperatorSetIdProto {
+            domain: String::new(),
+            version: OPSET,
+        }],
+        metadata_props: props
+            .into_iter()
+            .map(|(k, v)| StringStringEntryProto {
+                key: k.into(),
+                value: v,
+            })
+            .collect(),
+    }
+    .to_bytes()
+}

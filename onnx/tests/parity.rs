@@ -1,0 +1,110 @@
+//! The exported file computes what the Burn actor computes: tract's
+//! `deterministic_continuous_actions` equal the Burn actor's clipped mean on 64
+//! random observations, at batch 1 and batch 64 (max abs difference ≤ 1e−4).
+//! The observations, the expected actions and the file are also left in
+//! `target/onnx-check/` for `.ci/check_onnx.py` (onnx checker and onnxruntime).
+
+use burn::prelude::*;
+use deepfoids_env::VECTOR_OBS;
+use deepfoids_onnx::{Metadata, OnnxPolicy, export_actor};
+use deepfoids_ppo::model::{ActorCriticConfig, BodyConfig};
+use deepfoids_sensors::STACKED_LEN;
+use std::path::PathBuf;
+
+fn observations(n: usize, seed: u64) -> (Vec<f32>, Vec<f32>) {
+    let mut s = deepfoids_env::rng::Stream::new(seed, deepfoids_env::rng::Purpose::Policy, 0, 0);
+    // Grid values like the sensor's: mostly zeros, proximities in [0, 1), one-hot types.
+    let grids: Vec<f32> = (0..n * STACKED_LEN)
+        .map(|_| if s.uniform() < 0.3 { s.uniform() } else { 0.0 })
+        .collect();
+    let vectors: Vec<f32> = (0..n * VECTOR_OBS).map(|_| s.range(-1.5, 1.5)).collect();
+    (grids, vectors)
+}
+
+#[test]
+fn tract_matches_the_burn_actor() {
+    for backend_gemm in [true, false] {
+        let dev = Device::flex();
+        dev.seed(11);
+        let cfg = ActorCriticConfig::new()
+            .with_body(BodyConfig::new().with_gemm_conv(backend_gemm))
+            .with_init_log_std(-0.7);
+        let mut model = cfg.init(&dev);
+        // Give the mean head real weight (it starts near zero) so the test exercises it.
+        model.actor_mean.weight = model.actor_mean.weight.map(|w| w.mul_scalar(300.0));
+        let meta = Metadata {
+            species: "seabream".into(),
+            behaviour: "seabream_regular".into(),
+            scene: "seabream_default".into(),
+            algorithm: "ppo".into(),
+            training_step: 12345,
+            run: "test".into(),
+        };
+        let bytes = export_actor(&model, &meta);
+        let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../target/onnx-check"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("policy.onnx");
+        std::fs::write(&path, &bytes).unwrap();
+        let policy = OnnxPolicy::load(&path, false).unwrap();
+        assert_eq!(policy.metadata["species"], "seabream");
+        assert_eq!(policy.metadata["training_step"], "12345");
+
+        let n = 64;
+        let (grids, vectors) = observations(n, 3);
+        let g = Tensor::<4>::from_data(TensorData::new(grids.clone(), [n, 18, 20, 34]), &dev);
+        let v = Tensor::<2>::from_data(TensorData::new(vectors.clone(), [n, VECTOR_OBS]), &dev);
+        let (mean, _) = model.actor(g, v);
+        let expected: Vec<f32> = mean
+            .clamp(-1.0, 1.0)
+            .into_data()
+            .try_into_vec::<f32>()
+            .unwrap();
+        assert!(
+            expected.iter().any(|x| x.abs() > 0.05),
+            "the test needs non-trivial actions"
+        );
+        // Batch 64 at once.
+        let got = policy.run(&grids, &vectors, n).unwrap();
+        let worst = got
+            .iter()
+            .zip(&expected)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        eprintln!(
+            "tract vs Burn (gemm convolutions: {backend_gemm}): max abs difference {worst:.2e} at batch 64"
+        );
+        assert!(worst <= 1e-4, "batch 64: max abs difference {worst}");
+        // Batch 1, one observation at a time.
+        for i in 0..n {
+            let one = policy
+                .run(
+                    &grids[i * STACKED_LEN..(i + 1) * STACKED_LEN],
+                    &vectors[i * VECTOR_OBS..(i + 1) * VECTOR_OBS],
+                    1,
+                )
+                .unwrap();
+            for k in 0..3 {
+                assert!(
+                    (one[k] - expected[i * 3 + k]).abs() <= 1e-4,
+                    "batch 1, sample {i}: {one:?} vs {:?}",
+                    &expected[i * 3..i * 3 + 3]
+                );
+            }
+        }
+        // The sampled output is within [−1, 1] and differs from the mean.
+        let sampled = OnnxPolicy::load(&path, true)
+            .unwrap()
+            .run(&grids, &vectors, n)
+            .unwrap();
+        assert!(sampled.iter().all(|x| (-1.0..=1.0).contains(x)));
+        assert!(sampled.iter().zip(&got).any(|(a, b)| (a - b).abs() > 1e-3));
+        if backend_gemm {
+            // Leave the case for the Python checker.
+            let bin = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+            std::fs::write(dir.join("obs_0.bin"), bin(&grids)).unwrap();
+            std::fs::write(dir.join("obs_1.bin"), bin(&vectors)).unwrap();
+            std::fs::write(dir.join("expected.bin"), bin(&expected)).unwrap();
+            std::fs::write(dir.join("case.json"), format!("{{\"batch\": {n}}}")).unwrap();
+        }
+    }
+}
