@@ -34,12 +34,14 @@ pub enum Command {
     SensorView(SensorViewArgs),
     /// Judge a school: P, M, state shares, collisions, depth — CSV, JSON and plots
     Eval(EvalArgs),
-    /// Train one policy per behaviour of a scene (PPO)
+    /// Train one policy per behaviour of a scene (PPO or SAC)
     Train(TrainCmd),
     /// Pretrain a species in its default scene, then transfer-learn into each of its scenes
     Pipeline(PipelineArgs),
     /// Export a trained policy to ONNX (Unity ML-Agents' interface)
     Export(ExportArgs),
+    /// Compare runs (e.g. PPO against SAC): learning curves, reward terms, and a table of evaluations
+    Compare(CompareArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -121,6 +123,7 @@ pub struct EvalArgs {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Algo {
     Ppo,
+    Sac,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -185,6 +188,31 @@ pub struct ExportArgs {
     pub behaviour: Option<String>,
     /// Output file
     #[arg(long, default_value = "policy.onnx", value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Run folders (two or more)
+    #[arg(value_name = "RUN", required = true, num_args = 2..)]
+    pub runs: Vec<PathBuf>,
+    /// Scene to evaluate every run in [default: the first run's]
+    #[arg(long, value_name = "ID|PATH")]
+    pub scene: Option<String>,
+    /// Simulated seconds per evaluation
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Evaluation seeds 0..N, the same for every run
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    pub seeds: u64,
+    /// Weight of the exponential moving average of the curves (TensorBoard's smoothing)
+    #[arg(long, default_value_t = 0.6, value_name = "W")]
+    pub smoothing: f64,
+    /// Compute backend for the policies
+    #[arg(long, default_value = "flex", value_parser = parse_backend)]
+    pub backend: deepfoids_ppo::Backend,
+    /// Output folder
+    #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 }
 
@@ -303,6 +331,7 @@ pub fn run() -> Result<()> {
         Some(Command::Train(a)) => commands::train::run(&dirs, &a).map(|_| ()),
         Some(Command::Pipeline(a)) => commands::pipeline::run(&dirs, &a),
         Some(Command::Export(a)) => commands::export::run(&a),
+        Some(Command::Compare(a)) => commands::compare::run(&dirs, &a),
         Some(Command::Bench {
             what: BenchCommand::Train(a),
         }) => commands::bench::train(&dirs, &a),

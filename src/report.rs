@@ -190,7 +190,8 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
     }
 }
 
-const PALETTE: [RGBColor; 8] = [
+/// Line colours (matplotlib's tab10).
+pub const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),

@@ -351,3 +351,85 @@ fn train_export_and_eval_through_onnx() {
         text(&o)
     );
 }
+
+/// A PPO and a SAC run of 1,000 steps each, then `compare`: both PNGs, the
+/// Markdown and CSV tables, and the table printed, one row per run.
+#[test]
+fn compare_ppo_and_sac_runs() {
+    let runs = temp("compare");
+    for algo in ["ppo", "sac"] {
+        let o = deepfoids(&[
+            "train",
+            "--algo",
+            algo,
+            "--scene",
+            "seabream_default",
+            "--steps",
+            "1000",
+            "--runs-dir",
+            runs.to_str().unwrap(),
+            "--run-id",
+            algo,
+            "--eval-seconds",
+            "0",
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{algo}: {}", text(&o));
+        let state = std::fs::read_to_string(runs.join(algo).join("final/state.json")).unwrap();
+        assert!(state.contains(&format!("\"algo\": \"{algo}\"")), "{state}");
+    }
+    let sac_csv = std::fs::read_to_string(runs.join("sac/scalars.csv")).unwrap();
+    // 1,000 steps end before the first update (learning_starts is 5,000): no
+    // losses yet, but the entropy coefficient and the environment's scalars.
+    assert!(sac_csv.contains("Policy/Entropy Coeff") && !sac_csv.contains("Losses/Q1 Loss"));
+    assert!(sac_csv.contains("Environment/Reward per Decision"));
+    let out = runs.join("cmp");
+    let o = deepfoids(&[
+        "compare",
+        runs.join("ppo").to_str().unwrap(),
+        runs.join("sac").to_str().unwrap(),
+        "--seconds",
+        "2",
+        "--seeds",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let printed = text(&o);
+    assert!(
+        printed.contains("| ppo (ppo) |") && printed.contains("| sac (sac) |"),
+        "{printed}"
+    );
+    for f in ["learning_curves.png", "reward_terms.png"] {
+        let img = image::open(out.join(f)).unwrap();
+        assert!(img.width() >= 1200, "{f}");
+    }
+    let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 3, "{csv}");
+    let header: Vec<&str> = lines[0].split(',').collect();
+    assert!(
+        header.contains(&"P") && header.contains(&"agent-steps/s"),
+        "{csv}"
+    );
+    assert!(lines[2].split(',').nth(1) == Some("sac"), "{csv}");
+    let md = std::fs::read_to_string(out.join("compare.md")).unwrap();
+    assert!(md.contains("2 seed(s)"), "{md}");
+
+    // One run is not a comparison; a missing run is named.
+    let o = deepfoids(&["compare", runs.join("ppo").to_str().unwrap(), "--out", "x"]);
+    assert!(!o.status.success());
+    let o = deepfoids(&[
+        "compare",
+        runs.join("ppo").to_str().unwrap(),
+        runs.join("nope").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("nope"),
+        "{}",
+        text(&o)
+    );
+}

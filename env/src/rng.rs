@@ -25,6 +25,8 @@ pub enum Purpose {
     Exploration = 6,
     /// Minibatch shuffles of a trainer.
     Shuffle = 7,
+    /// Replay sampling and the reparameterisation noise of off-policy updates.
+    Replay = 8,
 }
 
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;

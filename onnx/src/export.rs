@@ -5,9 +5,10 @@
 //! * `version_number` `[1]` = 3, `memory_size` `[1]` = 0,
 //!   `continuous_action_output_shape` `[1]` = 3 — float constants (initializers,
 //!   passed through Identity nodes), as ML-Agents' exporter writes them;
-//! * `continuous_actions` `[batch, 3]` — sampled: `clip(μ + σ·ε, −1, 1)`,
-//!   ε from `RandomNormalLike`;
-//! * `deterministic_continuous_actions` `[batch, 3]` — `clip(μ, −1, 1)`.
+//! * `continuous_actions` `[batch, 3]` — sampled: `clip(μ + σ·ε, −1, 1)` (PPO)
+//!   or `tanh(μ + σ(s)·ε)` (SAC), ε from `RandomNormalLike`;
+//! * `deterministic_continuous_actions` `[batch, 3]` — `clip(μ, −1, 1)` (PPO)
+//!   or `tanh(μ)` (SAC).
 //!
 //! Opset 9: what ML-Agents exports and Unity's Barracuda loads (Sentis reads
 //! opsets 7–15). Swish is `x · sigmoid(x)`; Burn's `Linear` weights are
@@ -19,7 +20,7 @@ use crate::proto::*;
 use burn::nn::Linear;
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
-use deepfoids_ppo::model::{ACTIONS, ActorCritic};
+use deepfoids_ppo::model::{ACTIONS, ActorCritic, Body};
 use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
 
 /// The ONNX operator set the graph uses.
@@ -163,6 +164,21 @@ impl Builder {
         )
     }
 
+    /// `mean + std · ε`, ε ~ N(0, 1) of `mean`'s shape.
+    fn sample(&mut self, mean: &str, std: &str) -> String {
+        // tract picks the distribution from the node's name: it must start with
+        // "RandomNormal" and end with "Like".
+        let eps = self.node(
+            "RandomNormalLike",
+            "RandomNormalLike",
+            &[mean],
+            "epsilon",
+            vec![float("mean", 0.0), float("scale", 1.0)],
+        );
+        let noise = self.node("Mul", "noise", &[&eps, std], "noise.out", vec![]);
+        self.node("Add", "sample", &[mean, &noise], "sample.out", vec![])
+    }
+
     fn leaky(&mut self, prefix: &str, input: &str, alpha: f32) -> String {
         self.node(
             "LeakyRelu",
@@ -197,10 +213,40 @@ fn value_info(name: &str, dims: &[Result<i64, &str>]) -> ValueInfoProto {
     }
 }
 
-/// The actor of `model` as an ONNX model (protobuf bytes).
+/// The action head of an actor.
+pub enum Head<'a> {
+    /// PPO: a Gaussian with a state-independent log-std; actions are clipped
+    /// to [−1, 1]: deterministic `clip(μ)`, sampled `clip(μ + σ·ε)`.
+    Gaussian {
+        mean: &'a Linear,
+        log_std: &'a Tensor<1>,
+    },
+    /// SAC: a tanh-squashed Gaussian whose log-std is a head of its own,
+    /// `lo + (hi − lo)·(tanh(x) + 1)/2`: deterministic `tanh(μ)`, sampled
+    /// `tanh(μ + σ·ε)`.
+    Squashed {
+        mean: &'a Linear,
+        log_std: &'a Linear,
+        bounds: [f32; 2],
+    },
+}
+
+/// The actor of a PPO model as an ONNX model (protobuf bytes).
 pub fn export_actor(model: &ActorCritic, meta: &Metadata) -> Vec<u8> {
+    let log_std = model.log_std.val();
+    export_policy(
+        &model.actor_body,
+        Head::Gaussian {
+            mean: &model.actor_mean,
+            log_std: &log_std,
+        },
+        meta,
+    )
+}
+
+/// An actor (body and head) as an ONNX model (protobuf bytes).
+pub fn export_policy(body: &Body, head: Head<'_>, meta: &Metadata) -> Vec<u8> {
     let slope = 0.01f32;
-    let body = &model.actor_body;
     let mut b = Builder {
         nodes: vec![],
         init: vec![],
@@ -242,35 +288,72 @@ pub fn export_actor(model: &ActorCritic, meta: &Metadata) -> Vec<u8> {
             vec![],
         );
     }
-    let mean = b.gemm("actor_mean", &model.actor_mean, &x);
     let clip = |lo: f32, hi: f32| vec![float("min", lo), float("max", hi)];
-    b.node(
-        "Clip",
-        "deterministic",
-        &[&mean],
-        "deterministic_continuous_actions",
-        clip(-1.0, 1.0),
-    );
-    let log_std = b.constant("log_std", model.log_std.val());
-    let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
-    // tract picks the distribution from the node's name: it must start with
-    // "RandomNormal" and end with "Like".
-    let eps = b.node(
-        "RandomNormalLike",
-        "RandomNormalLike",
-        &[&mean],
-        "epsilon",
-        vec![float("mean", 0.0), float("scale", 1.0)],
-    );
-    let noise = b.node("Mul", "noise", &[&eps, &std], "noise.out", vec![]);
-    let sample = b.node("Add", "sample", &[&mean, &noise], "sample.out", vec![]);
-    b.node(
-        "Clip",
-        "sampled",
-        &[&sample],
-        "continuous_actions",
-        clip(-1.0, 1.0),
-    );
+    match head {
+        Head::Gaussian { mean, log_std } => {
+            let mean = b.gemm("actor_mean", mean, &x);
+            b.node(
+                "Clip",
+                "deterministic",
+                &[&mean],
+                "deterministic_continuous_actions",
+                clip(-1.0, 1.0),
+            );
+            let log_std = b.constant("log_std", log_std.clone());
+            let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
+            let sample = b.sample(&mean, &std);
+            b.node(
+                "Clip",
+                "sampled",
+                &[&sample],
+                "continuous_actions",
+                clip(-1.0, 1.0),
+            );
+        }
+        Head::Squashed {
+            mean,
+            log_std,
+            bounds: [lo, hi],
+        } => {
+            let mean = b.gemm("actor_mean", mean, &x);
+            b.node(
+                "Tanh",
+                "deterministic",
+                &[&mean],
+                "deterministic_continuous_actions",
+                vec![],
+            );
+            let raw = b.gemm("actor_log_std", log_std, &x);
+            let t = b.node("Tanh", "log_std.tanh", &[&raw], "log_std.tanh.out", vec![]);
+            let mut scalar = |name: &str, v: f32| {
+                b.init.push(tensor(name, &[1], &[v]));
+                name.to_string()
+            };
+            let (one, half_range, low) = (
+                scalar("log_std.one", 1.0),
+                scalar("log_std.half_range", 0.5 * (hi - lo)),
+                scalar("log_std.low", lo),
+            );
+            let t1 = b.node(
+                "Add",
+                "log_std.shift",
+                &[&t, &one],
+                "log_std.shift.out",
+                vec![],
+            );
+            let t2 = b.node(
+                "Mul",
+                "log_std.scale",
+                &[&t1, &half_range],
+                "log_std.scale.out",
+                vec![],
+            );
+            let log_std = b.node("Add", "log_std", &[&t2, &low], "log_std.out", vec![]);
+            let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
+            let sample = b.sample(&mean, &std);
+            b.node("Tanh", "sampled", &[&sample], "continuous_actions", vec![]);
+        }
+    }
     for (name, value) in [
         ("version_number", MODEL_EXPORT_VERSION),
         ("memory_size", 0.0),
@@ -286,7 +369,7 @@ pub fn export_actor(model: &ActorCritic, meta: &Metadata) -> Vec<u8> {
         name: format!("deepfoids_{}", meta.behaviour),
         initializer: b.init,
         doc_string:
-            "DeepFoids actor (SPEC §8): simple visual encoder, 4 x 128 Swish, Gaussian head".into(),
+            "DeepFoids actor (SPEC §8): simple visual encoder, 4 x 128 Swish, Gaussian head (PPO) or tanh-squashed Gaussian head (SAC)".into(),
         input: vec![
             value_info(
                 "obs_0",

@@ -5,5 +5,5 @@ pub mod export;
 pub mod proto;
 pub mod runtime;
 
-pub use export::{Metadata, export_actor};
+pub use export::{Head, Metadata, export_actor, export_policy};
 pub use runtime::{OnnxPolicy, check_species};

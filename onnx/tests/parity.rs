@@ -108,3 +108,71 @@ fn tract_matches_the_burn_actor() {
         }
     }
 }
+
+/// The SAC actor's export: tract's deterministic actions equal Burn's `tanh(μ)`
+/// (max abs difference ≤ 1e−4); sampled actions lie strictly inside (−1, 1) and
+/// differ from them. The case is left in `target/onnx-check/sac/` for the Python checker.
+#[test]
+fn tract_matches_the_sac_actor() {
+    use deepfoids_onnx::{Head, export_policy};
+    use deepfoids_sac::model::SacNetConfig;
+    let dev = Device::flex();
+    dev.seed(12);
+    let mut actor = SacNetConfig::new().init_actor(&dev);
+    // Both heads start small; give them weight so the test exercises them.
+    actor.mean.weight = actor.mean.weight.map(|w| w.mul_scalar(300.0));
+    actor.log_std.weight = actor.log_std.weight.map(|w| w.mul_scalar(100.0));
+    let meta = Metadata {
+        species: "seabream".into(),
+        behaviour: "seabream_regular".into(),
+        scene: "seabream_default".into(),
+        algorithm: "sac".into(),
+        training_step: 777,
+        run: "test".into(),
+    };
+    let bytes = export_policy(
+        &actor.body,
+        Head::Squashed {
+            mean: &actor.mean,
+            log_std: &actor.log_std,
+            bounds: [-5.0, 2.0],
+        },
+        &meta,
+    );
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../target/onnx-check/sac"
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("policy.onnx");
+    std::fs::write(&path, &bytes).unwrap();
+    let n = 32;
+    let (grids, vectors) = observations(n, 5);
+    let (mean, _) = actor.forward(
+        Tensor::<4>::from_data(TensorData::new(grids.clone(), [n, 18, 20, 34]), &dev),
+        Tensor::<2>::from_data(TensorData::new(vectors.clone(), [n, VECTOR_OBS]), &dev),
+    );
+    let expected: Vec<f32> = mean.tanh().into_data().try_into_vec::<f32>().unwrap();
+    assert!(expected.iter().any(|x| x.abs() > 0.05));
+    let got = OnnxPolicy::load(&path, false)
+        .unwrap()
+        .run(&grids, &vectors, n)
+        .unwrap();
+    let worst = got
+        .iter()
+        .zip(&expected)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1e-4, "max abs difference {worst}");
+    let sampled = OnnxPolicy::load(&path, true)
+        .unwrap()
+        .run(&grids, &vectors, n)
+        .unwrap();
+    assert!(sampled.iter().all(|x| x.abs() < 1.0));
+    assert!(sampled.iter().zip(&got).any(|(a, b)| (a - b).abs() > 1e-3));
+    let bin = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    std::fs::write(dir.join("obs_0.bin"), bin(&grids)).unwrap();
+    std::fs::write(dir.join("obs_1.bin"), bin(&vectors)).unwrap();
+    std::fs::write(dir.join("expected.bin"), bin(&expected)).unwrap();
+    std::fs::write(dir.join("case.json"), format!("{{\"batch\": {n}}}")).unwrap();
+}

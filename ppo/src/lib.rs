@@ -9,8 +9,9 @@ pub mod gaussian;
 pub mod logger;
 pub mod model;
 pub mod policy;
+pub mod stats;
 pub mod train;
 
 pub use config::PpoConfig;
 pub use policy::TrainedPolicy;
-pub use train::{Backend, TrainArgs, TrainOutcome, train};
+pub use train::{Backend, BufferMemory, TrainArgs, TrainOutcome, train};

@@ -48,6 +48,10 @@ pub struct BodyConfig {
     /// on the flex backend, slower on ndarray. Same weights, same results.
     #[config(default = true)]
     pub gemm_conv: bool,
+    /// Inputs concatenated after the vector observation (SAC's critics take the
+    /// action there, as ML-Agents' value networks do). 0 for PPO.
+    #[config(default = 0)]
+    pub extra_inputs: usize,
 }
 
 #[derive(Module, Debug)]
@@ -63,7 +67,7 @@ pub struct Body {
 impl BodyConfig {
     pub fn init(&self, device: &Device) -> Body {
         let mut trunk = Vec::with_capacity(self.layers);
-        let mut d_in = self.hidden + VECTOR_OBS;
+        let mut d_in = self.hidden + VECTOR_OBS + self.extra_inputs;
         for _ in 0..self.layers {
             trunk.push(LinearConfig::new(d_in, self.hidden).init(device));
             d_in = self.hidden;
@@ -151,8 +155,13 @@ pub fn conv2_gemm(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
 
 impl Body {
     /// # Shapes
-    /// grid `[B, 18, 20, 34]`, vector `[B, 6]` → `[B, hidden]`.
+    /// grid `[B, 18, 20, 34]`, vector `[B, 6 + extra_inputs]` → `[B, hidden]`.
     pub fn forward(&self, grid: Tensor<4>, vector: Tensor<2>) -> Tensor<2> {
+        self.trunk_forward(self.encode(grid), vector)
+    }
+
+    /// The visual encoder: grid `[B, 18, 20, 34]` → `[B, hidden]`.
+    pub fn encode(&self, grid: Tensor<4>) -> Tensor<2> {
         let (x1, x2): (Tensor<4>, Tensor<4>);
         if self.gemm_conv {
             x1 = leaky_relu(conv1_gemm(&self.conv1, grid), self.leaky_slope);
@@ -161,10 +170,14 @@ impl Body {
             x1 = leaky_relu(self.conv1.forward(grid), self.leaky_slope);
             x2 = leaky_relu(self.conv2.forward(x1), self.leaky_slope);
         }
-        let x = x2;
-        let x: Tensor<2> = x.flatten(1, 3);
-        let x = leaky_relu(self.fc_grid.forward(x), self.leaky_slope);
-        let mut x = Tensor::cat(vec![x, vector], 1);
+        let x: Tensor<2> = x2.flatten(1, 3);
+        leaky_relu(self.fc_grid.forward(x), self.leaky_slope)
+    }
+
+    /// The dense trunk on encoded grids `[B, hidden]` and vectors
+    /// `[B, 6 + extra_inputs]` → `[B, hidden]`.
+    pub fn trunk_forward(&self, encoded: Tensor<2>, vector: Tensor<2>) -> Tensor<2> {
+        let mut x = Tensor::cat(vec![encoded, vector], 1);
         for layer in &self.trunk {
             x = silu(layer.forward(x));
         }

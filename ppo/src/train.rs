@@ -34,13 +34,13 @@ use crate::gae::{BOOTSTRAP, CONTINUE, TERMINAL, gae};
 use crate::gaussian::{entropy, entropy_f32, log_prob, log_prob_f32};
 use crate::logger::Logger;
 use crate::model::{ACTIONS, ActorCritic, ActorCriticConfig, BodyConfig};
+use crate::stats::EpisodeStats;
 use anyhow::{Context, Result, bail};
 use burn::module::{ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
-use deepfoids_env::metrics::order_parameters;
 use deepfoids_env::rng::{Purpose, Stream};
-use deepfoids_env::{BehaviourBatch, Env, N_TERMS, Scene, StepOutput, TERM_NAMES, VECTOR_OBS};
+use deepfoids_env::{BehaviourBatch, Env, Scene, StepOutput, VECTOR_OBS};
 use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS, STACKED_LEN};
 use rayon::prelude::*;
 use std::path::PathBuf;
@@ -49,14 +49,17 @@ use std::time::{Duration, Instant};
 /// The compute backend.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Backend {
+    /// Burn's ndarray backend, with the `ndarray` cargo feature.
+    #[cfg(feature = "ndarray")]
     NdArray,
     Flex,
 }
 
 impl Backend {
-    #[allow(deprecated)] // Device::ndarray is deprecated in Burn 0.22 but still the fastest here.
+    #[allow(deprecated)] // Device::ndarray is deprecated in Burn 0.22.
     pub fn device(&self) -> Device {
         match self {
+            #[cfg(feature = "ndarray")]
             Backend::NdArray => Device::ndarray(),
             Backend::Flex => Device::flex(),
         }
@@ -64,6 +67,7 @@ impl Backend {
 
     pub fn as_str(&self) -> &'static str {
         match self {
+            #[cfg(feature = "ndarray")]
             Backend::NdArray => "ndarray",
             Backend::Flex => "flex",
         }
@@ -79,9 +83,14 @@ impl std::str::FromStr for Backend {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
+            #[cfg(feature = "ndarray")]
             "ndarray" => Ok(Backend::NdArray),
+            #[cfg(not(feature = "ndarray"))]
+            "ndarray" => Err(
+                "the ndarray backend is not compiled in; build with `--features ndarray` (e.g. `cargo run --release --features ndarray -- …`)".into(),
+            ),
             "flex" => Ok(Backend::Flex),
-            _ => Err(format!("unknown backend `{s}`; allowed: ndarray, flex")),
+            _ => Err(format!("unknown backend `{s}`; allowed: flex, ndarray")),
         }
     }
 }
@@ -125,6 +134,17 @@ pub struct TrainOutcome {
     /// `(agent steps, mean cumulative reward of the episodes finished)` where any finished.
     pub episode_curve: Vec<(u64, f64)>,
     pub final_dir: Option<PathBuf>,
+    /// The experience buffers at the end: bytes allocated, bytes written to
+    /// (resident), and transitions held — PPO's rollout buffers, SAC's replay.
+    pub buffer: BufferMemory,
+}
+
+/// Size of a trainer's experience buffers.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BufferMemory {
+    pub allocated: u64,
+    pub resident: u64,
+    pub transitions: u64,
 }
 
 /// The transitions of one behaviour, step-major: slot `s·n + a` is agent `a` at step `s`.
@@ -141,6 +161,17 @@ struct Buffer {
 }
 
 impl Buffer {
+    /// Bytes of the rollout buffer (all written by the first rollout).
+    fn bytes(&self) -> u64 {
+        4 * (self.grids.len()
+            + self.vectors.len()
+            + self.actions.len()
+            + self.logprobs.len()
+            + self.values.len()
+            + self.rewards.len()) as u64
+            + self.stops.len() as u64
+    }
+
     fn new(steps: usize, n: usize) -> Self {
         let m = steps * n;
         Self {
@@ -157,20 +188,11 @@ impl Buffer {
     }
 }
 
-/// Sums since the last log line of a behaviour.
+/// The critic's value estimates since the last log line.
 #[derive(Default)]
-struct Window {
-    decisions: u64,
-    reward: f64,
-    terms: [f64; N_TERMS],
-    terminations: u64,
-    episodes: u64,
-    episode_return: f64,
-    episode_length: f64,
-    p: f64,
-    m: f64,
-    pm_samples: u64,
-    values: f64,
+struct ValueWindow {
+    sum: f64,
+    count: u64,
 }
 
 /// One behaviour's learner.
@@ -186,13 +208,12 @@ struct Learner {
     buf: Buffer,
     pending: bool,
     since_cut: Vec<u32>,
-    episode_return: Vec<f64>,
-    episode_length: Vec<u32>,
     discounted: Vec<f64>,
     reward_norm: RunningMeanStd,
     agent_steps: u64,
     updates: u64,
-    window: Window,
+    stats: EpisodeStats,
+    values: ValueWindow,
 }
 
 /// Everything an update reports.
@@ -204,23 +225,23 @@ struct UpdateStats {
     clip_fraction: f64,
 }
 
-fn tensor4(data: Vec<f32>, n: usize, dev: &Device) -> Tensor<4> {
+pub fn tensor4(data: Vec<f32>, n: usize, dev: &Device) -> Tensor<4> {
     Tensor::from_data(
         TensorData::new(data, [n, STACKED_CHANNELS, EL_CELLS, AZ_CELLS]),
         dev,
     )
 }
 
-fn tensor2(data: Vec<f32>, n: usize, width: usize, dev: &Device) -> Tensor<2> {
+pub fn tensor2(data: Vec<f32>, n: usize, width: usize, dev: &Device) -> Tensor<2> {
     Tensor::from_data(TensorData::new(data, [n, width]), dev)
 }
 
-fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+pub fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
     t.into_data().try_into_vec::<f32>().expect("an f32 tensor")
 }
 
 /// Burn initialises parameters lazily; touch them all so a seeded init is reproducible.
-struct ForceInit;
+pub struct ForceInit;
 impl ModuleVisitor for ForceInit {
     fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
         let _ = p.val();
@@ -447,13 +468,12 @@ pub fn train(args: TrainArgs) -> Result<TrainOutcome> {
             buf: Buffer::new(steps, info.count),
             pending: false,
             since_cut: vec![0; info.count],
-            episode_return: vec![0.0; info.count],
-            episode_length: vec![0; info.count],
             discounted: vec![0.0; info.count],
             reward_norm,
             agent_steps,
             updates,
-            window: Window::default(),
+            stats: EpisodeStats::new(info.first, info.count),
+            values: ValueWindow::default(),
         });
     }
     let names: Vec<String> = learners.iter().map(|l| l.name.clone()).collect();
@@ -579,10 +599,18 @@ pub fn train(args: TrainArgs) -> Result<TrainOutcome> {
         curve,
         episode_curve,
         final_dir,
+        buffer: learners.iter().fold(BufferMemory::default(), |m, l| {
+            let bytes = l.buf.bytes();
+            BufferMemory {
+                allocated: m.allocated + bytes,
+                resident: m.resident + bytes,
+                transitions: m.transitions + (l.buf.steps * l.n) as u64,
+            }
+        }),
     })
 }
 
-fn progress_bar(show: bool, budget: u64, done: u64) -> Option<indicatif::ProgressBar> {
+pub fn progress_bar(show: bool, budget: u64, done: u64) -> Option<indicatif::ProgressBar> {
     if !show {
         return None;
     }
@@ -688,8 +716,9 @@ impl Learner {
             self.buf.actions[(at + a) * ACTIONS..(at + a + 1) * ACTIONS].copy_from_slice(&act);
             self.buf.logprobs[at + a] = log_prob_f32(mu, &log_std, &act);
             self.buf.values[at + a] = values[a];
-            self.window.values += values[a] as f64;
+            self.values.sum += values[a] as f64;
         }
+        self.values.count += n as u64;
         self.pending = true;
     }
 
@@ -726,29 +755,11 @@ impl Learner {
             if self.buf.stops[at + a] != CONTINUE {
                 self.since_cut[a] = 0;
             }
-            // Episode statistics, in raw rewards.
-            self.episode_return[a] += r as f64;
-            self.episode_length[a] += 1;
             if term || trunc {
-                self.window.episodes += 1;
-                self.window.episode_return += self.episode_return[a];
-                self.window.episode_length += self.episode_length[a] as f64;
-                self.episode_return[a] = 0.0;
-                self.episode_length[a] = 0;
                 self.discounted[a] = 0.0;
             }
-            self.window.reward += r as f64;
-            for (t, v) in batch.terms[a].iter().enumerate() {
-                self.window.terms[t] += *v as f64;
-            }
-            self.window.terminations += term as u64;
         }
-        let idx: Vec<usize> = (self.first..self.first + n).collect();
-        let (p, m) = order_parameters(&out.fish.position, &out.fish.heading, Some(&idx));
-        self.window.p += p as f64;
-        self.window.m += m as f64;
-        self.window.pm_samples += 1;
-        self.window.decisions += n as u64;
+        self.stats.record(batch, out);
         self.agent_steps += n as u64;
         self.buf.len += 1;
         self.pending = false;
@@ -925,41 +936,23 @@ impl Learner {
         lr: f64,
         rate: f64,
     ) -> Result<(f64, Option<f64>)> {
-        let w = std::mem::take(&mut self.window);
         let step = self.agent_steps;
-        let dec = w.decisions.max(1) as f64;
-        let episode = (w.episodes > 0).then(|| w.episode_return / w.episodes as f64);
-        if let Some(ep) = episode {
-            logger.scalar(b, "Environment/Cumulative Reward", ep, step)?;
-            logger.scalar(
-                b,
-                "Environment/Episode Length",
-                w.episode_length / w.episodes as f64,
-                step,
-            )?;
-        }
-        logger.scalar(b, "Environment/Reward per Decision", w.reward / dec, step)?;
-        logger.scalar(
-            b,
-            "Environment/Boundary Collisions per Decision",
-            w.terminations as f64 / dec,
-            step,
-        )?;
+        let (reward, episode) = self.stats.log(logger, b, step)?;
+        let values = std::mem::take(&mut self.values);
         logger.scalar(b, "Losses/Policy Loss", s.policy_loss, step)?;
         logger.scalar(b, "Losses/Value Loss", s.value_loss, step)?;
         logger.scalar(b, "Policy/Entropy", s.entropy, step)?;
         logger.scalar(b, "Policy/Learning Rate", lr, step)?;
-        logger.scalar(b, "Policy/Extrinsic Value Estimate", w.values / dec, step)?;
+        logger.scalar(
+            b,
+            "Policy/Extrinsic Value Estimate",
+            values.sum / values.count.max(1) as f64,
+            step,
+        )?;
         logger.scalar(b, "Policy/Approx KL", s.approx_kl, step)?;
         logger.scalar(b, "Policy/Clip Fraction", s.clip_fraction, step)?;
-        for (t, name) in TERM_NAMES.iter().enumerate() {
-            logger.scalar(b, &format!("Reward/{name}"), w.terms[t] / dec, step)?;
-        }
-        let pm = w.pm_samples.max(1) as f64;
-        logger.scalar(b, "School/P", w.p / pm, step)?;
-        logger.scalar(b, "School/M", w.m / pm, step)?;
         logger.scalar(b, "Perf/Agent Steps per Second", rate, step)?;
-        Ok((w.reward / dec, episode))
+        Ok((reward, episode))
     }
 }
 

@@ -2,7 +2,7 @@
 //! sensor included, warm-up excluded; and where the time goes.
 
 use super::load_scene;
-use crate::cli::{BenchEnvArgs, BenchPolicyArgs, BenchTrainArgs};
+use crate::cli::{Algo, BenchEnvArgs, BenchPolicyArgs, BenchTrainArgs};
 use anyhow::Result;
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy};
@@ -67,30 +67,47 @@ pub fn env(dirs: &ConfigDirs, args: &BenchEnvArgs) -> Result<()> {
 /// of agent steps, nothing saved; prints agent-steps/s and the split.
 pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
     let scene = load_scene(dirs, &args.scene, Phase::Pretrain)?;
-    let config = deepfoids_ppo::PpoConfig::load(dirs)?;
     let tmp = std::env::temp_dir().join(format!("deepfoids-bench-train-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     let id = scene.id.clone();
     let fish = scene.fish_count();
-    let out = deepfoids_ppo::train(deepfoids_ppo::TrainArgs {
-        scene,
-        config,
-        run_dir: tmp.clone(),
-        run_id: "bench".into(),
-        seed: args.seed,
-        steps: Some(args.steps),
-        resume: false,
-        init_from: None,
-        backend: args.backend,
-        progress: false,
-        save: false,
-    });
+    let rss_before = resident_set_bytes();
+    let out = match args.algo {
+        Algo::Ppo => deepfoids_ppo::train(deepfoids_ppo::TrainArgs {
+            scene,
+            config: deepfoids_ppo::PpoConfig::load(dirs)?,
+            run_dir: tmp.clone(),
+            run_id: "bench".into(),
+            seed: args.seed,
+            steps: Some(args.steps),
+            resume: false,
+            init_from: None,
+            backend: args.backend,
+            progress: false,
+            save: false,
+        }),
+        Algo::Sac => deepfoids_sac::train(deepfoids_sac::SacTrainArgs {
+            scene,
+            config: deepfoids_sac::SacConfig::load(dirs)?,
+            run_dir: tmp.clone(),
+            run_id: "bench".into(),
+            seed: args.seed,
+            steps: Some(args.steps),
+            resume: false,
+            init_from: None,
+            backend: args.backend,
+            progress: false,
+            save: false,
+        }),
+    };
+    let rss_after = resident_set_bytes();
     let _ = std::fs::remove_dir_all(&tmp);
     let out = out?;
     let t = out.timing;
     let secs = |d: std::time::Duration| d.as_secs_f64();
     println!(
-        "{id}: {fish} fish, {} backend, {} threads: {} agent steps in {:.1} s",
+        "{id}: {fish} fish, {}, {} backend, {} threads: {} agent steps in {:.1} s",
+        super::train::algo_name(args.algo),
         args.backend.as_str(),
         rayon::current_num_threads(),
         out.steps_this_run,
@@ -109,7 +126,37 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
         secs(t.update),
         100.0 * secs(t.update) / out.wall_seconds
     );
+    let mb = |b: u64| b as f64 / 1e6;
+    let b = out.buffer;
+    println!(
+        "experience buffer: {:.1} MB allocated, {:.1} MB resident, {} transitions{}",
+        mb(b.allocated),
+        mb(b.resident),
+        b.transitions,
+        match args.algo {
+            Algo::Sac => format!(
+                " of the replay ({} bytes each)",
+                deepfoids_sac::replay::BYTES_PER_TRANSITION
+            ),
+            Algo::Ppo => String::new(),
+        }
+    );
+    if let (Some(a), Some(z)) = (rss_before, rss_after) {
+        println!(
+            "process resident set: {:.1} MB before training, {:.1} MB after",
+            mb(a),
+            mb(z)
+        );
+    }
     Ok(())
+}
+
+/// The process's resident set size (Linux `/proc/self/status`, `VmRSS`).
+fn resident_set_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }
 
 /// `deepfoids bench policy`: deterministic actions for `agents` observations per

@@ -4,7 +4,7 @@
 use crate::cli::ExportArgs;
 use anyhow::{Result, bail};
 use burn::prelude::*;
-use deepfoids_onnx::{Metadata, export_actor};
+use deepfoids_onnx::{Head, Metadata, export_actor, export_policy};
 use deepfoids_ppo::checkpoint::{RunState, policy_dir};
 use deepfoids_ppo::model::{ActorCriticConfig, BodyConfig};
 use deepfoids_ppo::train::load_weights;
@@ -30,20 +30,6 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         ),
     };
     let dev = Device::flex();
-    let cfg = ActorCriticConfig::new()
-        .with_body(
-            BodyConfig::new()
-                .with_hidden(state.hidden)
-                .with_layers(state.layers),
-        )
-        .with_init_log_std(state.init_log_std);
-    let model = load_weights(
-        &dir,
-        &state,
-        &behaviour.name,
-        &behaviour.species,
-        cfg.init(&dev),
-    )?;
     let meta = Metadata {
         species: behaviour.species.clone(),
         behaviour: behaviour.name.clone(),
@@ -52,7 +38,50 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         training_step: behaviour.agent_steps,
         run: state.run_id.clone(),
     };
-    let bytes = export_actor(&model, &meta);
+    let bytes = match state.algo.as_str() {
+        "sac" => {
+            let extra = deepfoids_sac::train::SacExtra::load(&dir)?;
+            let cfg = deepfoids_sac::train::net_config(
+                state.hidden,
+                state.layers,
+                extra.log_std_bounds,
+                deepfoids_ppo::Backend::Flex,
+            );
+            let actor = deepfoids_sac::policy::load_actor(
+                &dir,
+                &state,
+                &behaviour.name,
+                &behaviour.species,
+                cfg.init_actor(&dev),
+            )?;
+            export_policy(
+                &actor.body,
+                Head::Squashed {
+                    mean: &actor.mean,
+                    log_std: &actor.log_std,
+                    bounds: extra.log_std_bounds,
+                },
+                &meta,
+            )
+        }
+        _ => {
+            let cfg = ActorCriticConfig::new()
+                .with_body(
+                    BodyConfig::new()
+                        .with_hidden(state.hidden)
+                        .with_layers(state.layers),
+                )
+                .with_init_log_std(state.init_log_std);
+            let model = load_weights(
+                &dir,
+                &state,
+                &behaviour.name,
+                &behaviour.species,
+                cfg.init(&dev),
+            )?;
+            export_actor(&model, &meta)
+        }
+    };
     crate::io::write_atomic(&args.out, &bytes)?;
     println!(
         "wrote {} ({} bytes, ONNX opset {}): {} policy of {} ({}), step {}",

@@ -1,6 +1,7 @@
 //! One module per command.
 
 pub mod bench;
+pub mod compare;
 pub mod eval;
 pub mod export;
 pub mod pipeline;
@@ -44,18 +45,54 @@ pub fn make_policy(
             deepfoids_onnx::check_species(&p, env)?;
             Ok(Box::new(p))
         }
-        _ if path.is_dir() => Ok(Box::new(TrainedPolicy::load(
+        _ if path.is_dir() => load_trained(
             path,
             opts.checkpoint,
             env,
             opts.backend,
             !opts.stochastic,
             seed,
-        )?)),
+        ),
         other => bail!(
             "unknown policy `{other}`; allowed: random, foids, boids, a run folder (runs/<id>) or a .onnx file"
         ),
     }
+}
+
+/// The policy of a run folder (its `final/`, or checkpoint `step`), PPO or SAC
+/// as its `state.json` says.
+pub fn load_trained(
+    run: &std::path::Path,
+    step: Option<u64>,
+    env: &Env,
+    backend: deepfoids_ppo::Backend,
+    deterministic: bool,
+    seed: u64,
+) -> Result<Box<dyn Policy>> {
+    let dir = deepfoids_ppo::checkpoint::policy_dir(run, step)?;
+    let state = deepfoids_ppo::checkpoint::RunState::load(&dir)?;
+    Ok(match state.algo.as_str() {
+        "ppo" => Box::new(TrainedPolicy::load(
+            run,
+            step,
+            env,
+            backend,
+            deterministic,
+            seed,
+        )?),
+        "sac" => Box::new(deepfoids_sac::SacPolicy::load(
+            run,
+            step,
+            env,
+            backend,
+            deterministic,
+            seed,
+        )?),
+        other => bail!(
+            "{}: unknown algorithm `{other}` in state.json; allowed: ppo, sac",
+            dir.display()
+        ),
+    })
 }
 
 /// Agent decisions of the built-in main job (a few minutes on 2 cores).

@@ -5,8 +5,9 @@ use crate::cli::{Algo, TrainCmd, TrainOptions};
 use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
 use anyhow::{Context, Result, bail};
 use deepfoids_env::metrics::Summary;
-use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
-use deepfoids_ppo::{PpoConfig, TrainArgs, TrainOutcome, TrainedPolicy};
+use deepfoids_env::{ConfigDirs, Env, Scene};
+use deepfoids_ppo::{PpoConfig, TrainArgs, TrainOutcome};
+use deepfoids_sac::{SacConfig, SacTrainArgs};
 use std::path::{Path, PathBuf};
 
 /// A finished training command.
@@ -44,6 +45,7 @@ pub fn run(dirs: &ConfigDirs, args: &TrainCmd) -> Result<Trained> {
 pub fn algo_name(a: Algo) -> &'static str {
     match a {
         Algo::Ppo => "ppo",
+        Algo::Sac => "sac",
     }
 }
 
@@ -79,7 +81,15 @@ pub fn train_scene(
     resume: bool,
     opts: &TrainOptions,
 ) -> Result<Trained> {
-    let config = PpoConfig::load(dirs)?;
+    let (ppo, sac) = match opts.algo {
+        Algo::Ppo => (Some(PpoConfig::load(dirs)?), None),
+        Algo::Sac => (None, Some(SacConfig::load(dirs)?)),
+    };
+    let budget = steps.unwrap_or_else(|| match (&ppo, &sac) {
+        (Some(c), _) => c.budget(&scene, scene.phase),
+        (_, Some(c)) => c.budget(&scene, scene.phase),
+        _ => unreachable!("one config is loaded"),
+    });
     std::fs::create_dir_all(run_dir)
         .with_context(|| format!("cannot create {}", run_dir.display()))?;
     if !resume {
@@ -90,16 +100,18 @@ pub fn train_scene(
         run.insert("scene".into(), scene.id.clone().into());
         run.insert("phase".into(), scene.phase.as_str().into());
         run.insert("seed".into(), (opts.seed as i64).into());
-        run.insert(
-            "steps".into(),
-            (steps.unwrap_or_else(|| config.budget(&scene, scene.phase)) as i64).into(),
-        );
+        run.insert("steps".into(), (budget as i64).into());
         run.insert("backend".into(), opts.backend.as_str().into());
         if let Some(i) = &init_from {
             run.insert("init_from".into(), i.display().to_string().into());
         }
         resolved.insert("run".into(), run.into());
-        resolved.insert("ppo".into(), toml::Value::try_from(&config)?);
+        if let Some(c) = &ppo {
+            resolved.insert("ppo".into(), toml::Value::try_from(c)?);
+        }
+        if let Some(c) = &sac {
+            resolved.insert("sac".into(), toml::Value::try_from(c)?);
+        }
         resolved.insert("scene".into(), toml::Value::try_from(&scene)?);
         crate::io::write_atomic(
             run_dir.join("config.toml"),
@@ -113,19 +125,35 @@ pub fn train_scene(
         scene.phase.as_str(),
         run_dir.display()
     );
-    let outcome = deepfoids_ppo::train(TrainArgs {
-        scene: scene.clone(),
-        config,
-        run_dir: run_dir.to_path_buf(),
-        run_id: run_id.to_string(),
-        seed: opts.seed,
-        steps,
-        resume,
-        init_from,
-        backend: opts.backend,
-        progress: !opts.quiet,
-        save: true,
-    })?;
+    let outcome = match (ppo, sac) {
+        (Some(config), _) => deepfoids_ppo::train(TrainArgs {
+            scene: scene.clone(),
+            config,
+            run_dir: run_dir.to_path_buf(),
+            run_id: run_id.to_string(),
+            seed: opts.seed,
+            steps: Some(budget),
+            resume,
+            init_from,
+            backend: opts.backend,
+            progress: !opts.quiet,
+            save: true,
+        })?,
+        (_, Some(config)) => deepfoids_sac::train(SacTrainArgs {
+            scene: scene.clone(),
+            config,
+            run_dir: run_dir.to_path_buf(),
+            run_id: run_id.to_string(),
+            seed: opts.seed,
+            steps: Some(budget),
+            resume,
+            init_from,
+            backend: opts.backend,
+            progress: !opts.quiet,
+            save: true,
+        })?,
+        _ => unreachable!("one config is loaded"),
+    };
     print_training(&outcome);
     let summary = if opts.eval_seconds > 0.0 {
         Some(evaluate_run(scene, run_dir, opts)?)
@@ -163,7 +191,7 @@ fn print_training(o: &TrainOutcome) {
     );
     if let Some((a, b)) = curve_ends(&o.curve, 3) {
         println!(
-            "learning curve (mean reward per decision): start {a:.3} → end {b:.3} over {} updates",
+            "learning curve (mean reward per decision): start {a:.3} → end {b:.3} over {} log points",
             o.curve.len()
         );
     }
@@ -175,8 +203,8 @@ fn print_training(o: &TrainOutcome) {
 /// Evaluate a run's final policy deterministically; writes `<run>/eval/`.
 pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
     let mut env = Env::new(scene, opts.seed.wrapping_add(1_000_003));
-    let mut policy = TrainedPolicy::load(run_dir, None, &env, opts.backend, true, opts.seed)?;
-    let eval = evaluate(&mut env, &mut policy, opts.eval_seconds, |_, _| {})?;
+    let mut policy = super::load_trained(run_dir, None, &env, opts.backend, true, opts.seed)?;
+    let eval = evaluate(&mut env, policy.as_mut(), opts.eval_seconds, |_, _| {})?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {

@@ -1,0 +1,195 @@
+//! SAC hyperparameters (thesis Table 4.5, SPEC §8), read from
+//! `configs/train/sac.toml`. A plain serde struct: unknown keys are rejected
+//! and missing keys take the documented defaults.
+
+use deepfoids_env::config::{ConfigError, read_toml};
+use deepfoids_env::{ConfigDirs, Phase, Scene};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SacConfig {
+    /// Adam learning rate, `[pretraining, transfer]`. Table 4.5: 0.001 / 0.0005.
+    pub learning_rate: [f64; 2],
+    /// Initial entropy coefficient α, `[pretraining, transfer]`. Table 4.5: 0.3 / 0.
+    /// Zero switches the entropy term and its tuning off.
+    pub init_entropy_coef: [f64; 2],
+    /// Target entropy of the automatic α tuning: −|A| = −3.
+    pub target_entropy: f64,
+    /// Polyak factor of the target critics. Table 4.5: 0.005.
+    pub tau: f32,
+    /// Discount factor γ. Table 4.5: 0.99.
+    pub gamma: f32,
+    /// Transitions per gradient update. Table 4.5: 1024.
+    pub batch_size: usize,
+    /// Replay capacity in transitions, per behaviour. Table 4.5: 102,400.
+    pub buffer_size: usize,
+    /// Agent steps per gradient update, on average. Table 4.5: 1000
+    /// (with 1,000 fish, one update per decision step).
+    pub steps_per_update: f64,
+    /// Agent steps collected (with the untrained policy) before the first update.
+    pub learning_starts: u64,
+    /// Table 4.5's time horizon (64). One-step TD targets do not use it; kept so
+    /// the resolved config shows every value of the table.
+    pub time_horizon: usize,
+    /// Width of the dense layers. SPEC §8: 128.
+    pub hidden: usize,
+    /// Dense Swish layers. SPEC §8: 4.
+    pub layers: usize,
+    /// The actor's log σ is `lo + (hi − lo)·(tanh(x) + 1)/2` (CleanRL's bounds).
+    pub log_std_bounds: [f32; 2],
+    /// Adam ε (PyTorch's 1e−8).
+    pub adam_epsilon: f64,
+    /// Save the replay buffer with each checkpoint (off: smaller checkpoints, but
+    /// a resumed run starts with an empty buffer).
+    pub save_replay_buffer: bool,
+    /// Write the scalars every this many agent decisions of a behaviour
+    /// (10,240: PPO's cadence, so the two algorithms' curves line up).
+    pub summary_every: u64,
+    /// Save a checkpoint every this many agent decisions.
+    pub checkpoint_every: u64,
+    /// Checkpoints kept (older ones are deleted).
+    pub keep_checkpoints: usize,
+    /// Agent decisions per species, `[pretraining, transfer]` (thesis §4.5.2).
+    pub budgets: BTreeMap<String, [u64; 2]>,
+}
+
+impl Default for SacConfig {
+    fn default() -> Self {
+        Self {
+            learning_rate: [0.001, 0.0005],
+            init_entropy_coef: [0.3, 0.0],
+            target_entropy: -3.0,
+            tau: 0.005,
+            gamma: 0.99,
+            batch_size: 1024,
+            buffer_size: 102_400,
+            steps_per_update: 1000.0,
+            learning_starts: 5000,
+            time_horizon: 64,
+            hidden: 128,
+            layers: 4,
+            log_std_bounds: [-5.0, 2.0],
+            adam_epsilon: 1e-8,
+            save_replay_buffer: true,
+            summary_every: 10_240,
+            checkpoint_every: 100_000,
+            keep_checkpoints: 2,
+            budgets: BTreeMap::from([
+                ("coho".to_string(), [4_000_000, 1_000_000]),
+                ("yellowtail".to_string(), [2_000_000, 2_000_000]),
+                ("seabream".to_string(), [2_000_000, 2_000_000]),
+            ]),
+        }
+    }
+}
+
+fn phase_index(phase: Phase) -> usize {
+    match phase {
+        Phase::Pretrain => 0,
+        Phase::Transfer => 1,
+    }
+}
+
+impl SacConfig {
+    /// `train/sac.toml` under the config root.
+    pub fn load(dirs: &ConfigDirs) -> Result<Self, ConfigError> {
+        let path = dirs.root.join("train").join("sac.toml");
+        let cfg: SacConfig = read_toml(&path)?;
+        cfg.validate(&path)?;
+        Ok(cfg)
+    }
+
+    pub fn validate(&self, path: &std::path::Path) -> Result<(), ConfigError> {
+        let bad = |field: &str, msg: &str| Err(ConfigError::invalid(path, field, msg));
+        if !self.learning_rate.iter().all(|&lr| lr > 0.0 && lr <= 1.0) {
+            return bad("learning_rate", "both values must lie in (0, 1]");
+        }
+        if !self
+            .init_entropy_coef
+            .iter()
+            .all(|&a| a >= 0.0 && a.is_finite())
+        {
+            return bad(
+                "init_entropy_coef",
+                "both values must be ≥ 0 (0: no entropy term)",
+            );
+        }
+        if !self.target_entropy.is_finite() {
+            return bad("target_entropy", "must be a finite number");
+        }
+        if !(self.tau > 0.0 && self.tau <= 1.0) {
+            return bad("tau", "must lie in (0, 1]");
+        }
+        if !(0.0..=1.0).contains(&self.gamma) {
+            return bad("gamma", "must lie in [0, 1]");
+        }
+        if self.batch_size == 0 || self.buffer_size < self.batch_size {
+            return bad(
+                "buffer_size",
+                "buffer_size must be at least batch_size, and batch_size at least 1",
+            );
+        }
+        if !(self.steps_per_update >= 1.0 && self.steps_per_update.is_finite()) {
+            return bad(
+                "steps_per_update",
+                "must be at least 1 agent step per update",
+            );
+        }
+        if self.hidden == 0 || self.layers == 0 {
+            return bad("hidden", "hidden and layers must be at least 1");
+        }
+        let [lo, hi] = self.log_std_bounds;
+        if !(lo < hi && lo.is_finite() && hi.is_finite()) {
+            return bad("log_std_bounds", "must be [low, high] with low < high");
+        }
+        if self.checkpoint_every == 0 || self.summary_every == 0 {
+            return bad(
+                "checkpoint_every",
+                "checkpoint_every and summary_every must be at least 1",
+            );
+        }
+        Ok(())
+    }
+
+    pub fn lr(&self, phase: Phase) -> f64 {
+        self.learning_rate[phase_index(phase)]
+    }
+
+    pub fn init_alpha(&self, phase: Phase) -> f64 {
+        self.init_entropy_coef[phase_index(phase)]
+    }
+
+    /// The thesis' budget for a scene and phase: the largest of its species' budgets.
+    pub fn budget(&self, scene: &Scene, phase: Phase) -> u64 {
+        scene
+            .species_names()
+            .iter()
+            .filter_map(|s| self.budgets.get(s).map(|b| b[phase_index(phase)]))
+            .max()
+            .unwrap_or(2_000_000)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_file_holds_table_4_5() {
+        let dirs = ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
+        let c = SacConfig::load(&dirs).unwrap();
+        assert_eq!(c, SacConfig::default());
+    }
+
+    #[test]
+    fn a_bad_value_names_the_field() {
+        let c = SacConfig {
+            tau: 0.0,
+            ..Default::default()
+        };
+        let e = c.validate(std::path::Path::new("sac.toml")).unwrap_err();
+        assert!(e.to_string().contains("tau"), "{e}");
+    }
+}
