@@ -250,11 +250,8 @@ pub struct EntropyCoef {
 impl EntropyCoef {
     pub fn new(init: f64) -> Self {
         Self {
-            log_alpha: if init > 0.0 {
-                init.ln()
-            } else {
-                f64::NEG_INFINITY
-            },
+            // Off: α is 0 and log α unused (kept finite so `sac.json` stays valid JSON).
+            log_alpha: if init > 0.0 { init.ln() } else { 0.0 },
             enabled: init > 0.0,
             m: 0.0,
             v: 0.0,
@@ -395,6 +392,12 @@ mod tests {
         let mut off = EntropyCoef::new(0.0);
         assert_eq!(off.step(5.0, -3.0, 0.001, 1e-8), 0.0);
         assert_eq!(off.alpha(), 0.0);
+        // Both states survive `sac.json`.
+        for c in [EntropyCoef::new(0.0), EntropyCoef::new(0.3)] {
+            let back: EntropyCoef =
+                serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
+            assert_eq!(back, c);
+        }
     }
 
     #[test]
