@@ -21,6 +21,15 @@ fn observations(n: usize, seed: u64) -> (Vec<f32>, Vec<f32>) {
     (grids, vectors)
 }
 
+/// Head weights `[128, 3]` uniform in ±`lim`.
+fn uniform(lim: f64, dev: &Device) -> burn::module::Param<Tensor<2>> {
+    burn::module::Param::from_tensor(Tensor::<2>::random(
+        [128, 3],
+        burn::tensor::Distribution::Uniform(-lim, lim),
+        dev,
+    ))
+}
+
 #[test]
 fn tract_matches_the_burn_actor() {
     for backend_gemm in [true, false] {
@@ -31,7 +40,7 @@ fn tract_matches_the_burn_actor() {
             .with_init_log_std(-0.7);
         let mut model = cfg.init(&dev);
         // Give the mean head real weight (it starts near zero) so the test exercises it.
-        model.actor_mean.weight = model.actor_mean.weight.map(|w| w.mul_scalar(300.0));
+        model.actor_mean.weight = uniform(0.5, &dev);
         let meta = Metadata {
             species: "seabream".into(),
             behaviour: "seabream_regular".into(),
@@ -126,15 +135,8 @@ fn tract_matches_the_sac_actor() {
     dev.seed(12);
     let mut actor = SacNetConfig::new().init_actor(&dev);
     // Both heads start small; give them weight so the test exercises them.
-    let uniform = |lim: f64| {
-        burn::module::Param::from_tensor(Tensor::<2>::random(
-            [128, 3],
-            burn::tensor::Distribution::Uniform(-lim, lim),
-            &dev,
-        ))
-    };
-    actor.mean.weight = uniform(0.5);
-    actor.log_std.weight = uniform(0.5);
+    actor.mean.weight = uniform(0.5, &dev);
+    actor.log_std.weight = uniform(0.5, &dev);
     let meta = Metadata {
         species: "seabream".into(),
         behaviour: "seabream_regular".into(),
