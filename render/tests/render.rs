@@ -1,0 +1,337 @@
+//! Rendering and labelling tests with hand-computed expectations.
+
+use deepfoids_env::cage::Cage;
+use deepfoids_env::config::CageConfig;
+use deepfoids_env::sun::SunPlace;
+use deepfoids_render::dataset::{rle_counts, rle_from_string, rle_string, yolo_labels};
+use deepfoids_render::mesh::{FishMesh, FishStyle};
+use deepfoids_render::render::fish_axes;
+use deepfoids_render::{
+    Camera, Conditions, FishPose, Frame, Light, RenderConfig, Renderer, Water, WaterParams,
+};
+use glam::Vec3;
+
+const PLACE: SunPlace = SunPlace {
+    latitude_deg: 38.465,
+    longitude_deg: 141.480,
+    utc_offset_hours: 9.0,
+};
+
+fn coho_mesh() -> FishMesh {
+    FishMesh::standard(&FishStyle::for_species(
+        "coho",
+        [0.12, 0.25, 1.0],
+        [0.42, 0.48, 0.55],
+    ))
+}
+
+fn renderer() -> Renderer {
+    let cage = Cage::new(CageConfig::Cube { edge: 6.0 });
+    Renderer::new(
+        RenderConfig {
+            tail_beat: false,
+            ..RenderConfig::default()
+        },
+        vec![coho_mesh()],
+        Renderer::faces_of(&cage),
+    )
+}
+
+fn conditions(hours: f64) -> Conditions {
+    Conditions {
+        light: Light::new(PLACE, 2021, 3, 15, hours),
+        noon: Light::new(PLACE, 2021, 3, 15, PLACE.solar_noon_hours(2021, 3, 15)),
+        water: Water::new(WaterParams::default(), true),
+    }
+}
+
+fn fish_at(position: Vec3, heading: Vec3, bl: f32) -> FishPose {
+    FishPose {
+        position,
+        heading,
+        roll: 0.0,
+        bl,
+        speed: 0.0,
+        species: 0,
+        tail_phase: 0.0,
+    }
+}
+
+/// Min/max of the projections of every mesh vertex of `f`.
+fn analytic_box(mesh: &FishMesh, f: &FishPose, cam: &Camera) -> [f32; 4] {
+    let axes = fish_axes(f.heading, f.roll);
+    let mut b = [f32::MAX, f32::MAX, f32::MIN, f32::MIN];
+    for p in &mesh.positions {
+        let q = cam.project(f.position + axes * (*p * f.bl)).unwrap();
+        b[0] = b[0].min(q.x);
+        b[1] = b[1].min(q.y);
+        b[2] = b[2].max(q.x);
+        b[3] = b[3].max(q.y);
+    }
+    b
+}
+
+fn assert_box_close(label: [u32; 4], analytic: [f32; 4]) {
+    for k in 0..4 {
+        assert!(
+            (label[k] as f32 - analytic[k]).abs() <= 1.0,
+            "box {label:?} vs analytic {analytic:?}"
+        );
+    }
+}
+
+/// A fish 2 m in front of a side camera, seen obliquely: the full and the
+/// visible box equal the projected mesh's bounds to within a pixel.
+#[test]
+fn single_fish_box_matches_the_projected_mesh_pinhole() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 640, 360);
+    let f = fish_at(
+        Vec3::new(0.3, -1.9, 0.8),
+        Vec3::new(1.0, 0.1, 0.4).normalize(),
+        0.5,
+    );
+    let frame = r.render(&[f], &cam, &conditions(11.5));
+    assert_eq!(frame.fish.len(), 1);
+    let l = &frame.fish[0];
+    let analytic = analytic_box(&r.meshes[0], &f, &cam);
+    assert_box_close(l.box_full, analytic);
+    assert_eq!(l.box_visible, Some(l.box_full));
+    assert_eq!(l.visibility, 1.0);
+    assert!(!l.truncated);
+    // The mask holds exactly the visible pixels, with id fish + 1.
+    let n = frame.ids.iter().filter(|&&v| v == 1).count() as u32;
+    assert_eq!(n, l.visible_pixels);
+    // 3D box: corners at ±half extents around the centre; the camera
+    // coordinates are the world corners seen from the camera.
+    let c = l
+        .box3d_world
+        .iter()
+        .fold(Vec3::ZERO, |s, p| s + Vec3::from(*p))
+        / 8.0;
+    assert!((c - f.position).length() < 0.05 * f.bl, "{c}");
+    for (w, k) in l.box3d_world.iter().zip(&l.box3d_camera) {
+        assert!((cam.to_camera(Vec3::from(*w)) - Vec3::from(*k)).length() < 1e-5);
+    }
+}
+
+/// The same with the bottom fisheye: a fish 1.5 m above and 1 m to the side.
+#[test]
+fn single_fish_box_matches_the_projected_mesh_fisheye() {
+    let r = renderer();
+    let cam = Camera::fisheye(
+        Vec3::new(0.0, -5.8, 0.0),
+        Vec3::Y,
+        -Vec3::Z,
+        235.0,
+        800,
+        800,
+    );
+    let f = fish_at(
+        Vec3::new(1.0, -4.3, 0.2),
+        Vec3::new(0.2, 0.0, 1.0).normalize(),
+        0.5,
+    );
+    let frame = r.render(&[f], &cam, &conditions(11.5));
+    let l = &frame.fish[0];
+    assert_box_close(l.box_full, analytic_box(&r.meshes[0], &f, &cam));
+    assert!(!l.truncated && l.visibility == 1.0);
+}
+
+/// Two fish on one line of sight: the near one hides part of the far one.
+/// The far one's visibility is below 1, the near one's is 1, and every mask
+/// pixel with id k lies inside box k.
+#[test]
+fn two_fish_in_line_occlude() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 480, 320);
+    let near = fish_at(Vec3::new(0.0, -2.0, 1.8), Vec3::X, 0.5);
+    let far = fish_at(Vec3::new(0.1, -2.07, 0.3), Vec3::X, 0.5);
+    let frame = r.render(&[near, far], &cam, &conditions(11.5));
+    let get = |k: usize| frame.fish.iter().find(|l| l.fish == k).unwrap();
+    let (ln, lf) = (get(0), get(1));
+    assert_eq!(ln.visibility, 1.0);
+    assert!(
+        lf.visibility < 1.0 && lf.visibility > 0.0,
+        "{}",
+        lf.visibility
+    );
+    assert!(lf.full_pixels > lf.visible_pixels);
+    for (k, l) in [(1u16, ln), (2u16, lf)] {
+        let [x0, y0, x1, y1] = l.box_visible.unwrap();
+        let mut n = 0;
+        for y in 0..frame.height {
+            for x in 0..frame.width {
+                if frame.ids[(y * frame.width + x) as usize] == k {
+                    assert!(x >= x0 && x < x1 && y >= y0 && y < y1);
+                    n += 1;
+                }
+            }
+        }
+        assert_eq!(n, l.visible_pixels);
+    }
+    // Swapping the order in the list changes nothing: the depth test decides.
+    let swapped = r.render(&[far, near], &cam, &conditions(11.5));
+    assert_eq!(
+        swapped.ids.iter().filter(|&&v| v == 1).count() as u32,
+        lf.visible_pixels
+    );
+}
+
+/// A fish half outside the image is flagged truncated; its full box is clipped.
+#[test]
+fn fish_at_the_border_is_truncated() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 240);
+    // At 1.5 m the image's right edge is at x = 1.5 m.
+    let f = fish_at(Vec3::new(1.5, -2.0, 1.3), Vec3::X, 0.5);
+    let frame = r.render(&[f], &cam, &conditions(11.5));
+    let l = &frame.fish[0];
+    assert!(l.truncated);
+    assert_eq!(l.box_full[2], 320);
+    let inside = fish_at(Vec3::new(0.0, -2.0, 1.3), Vec3::X, 0.5);
+    assert!(!r.render(&[inside], &cam, &conditions(11.5)).fish[0].truncated);
+}
+
+/// A fish that crosses the near plane is clipped, not dropped.
+#[test]
+fn fish_through_the_near_plane_is_clipped() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 240);
+    let f = fish_at(Vec3::new(0.0, -2.1, 2.7), Vec3::Z, 0.5);
+    let frame = r.render(&[f], &cam, &conditions(11.5));
+    assert!(frame.fish[0].truncated);
+    assert!(
+        frame.fish[0].visible_pixels > 1000,
+        "{}",
+        frame.fish[0].visible_pixels
+    );
+}
+
+/// Back-face culling of the closed body loses no pixel of the silhouette:
+/// seen from any side, the fish covers what its vertices' hull suggests and
+/// the silhouette has no holes along its middle row.
+#[test]
+fn silhouette_has_no_holes() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 60.0, 400, 300);
+    for heading in [
+        Vec3::X,
+        Vec3::Z,
+        -Vec3::Z,
+        Vec3::new(1.0, 0.5, 1.0).normalize(),
+    ] {
+        let f = fish_at(Vec3::new(0.0, -2.0, 1.8), heading, 0.5);
+        let frame = r.render(&[f], &cam, &conditions(11.5));
+        let l = &frame.fish[0];
+        let [x0, y0, x1, y1] = l.box_full;
+        let ymid = (y0 + y1) / 2;
+        let row: Vec<bool> = (x0..x1)
+            .map(|x| frame.ids[(ymid * frame.width + x) as usize] == 1)
+            .collect();
+        let first = row.iter().position(|&b| b).unwrap();
+        let last = row.iter().rposition(|&b| b).unwrap();
+        assert!(
+            row[first..=last].iter().all(|&b| b),
+            "hole for heading {heading}"
+        );
+    }
+}
+
+/// Night is dark: at 23:00 every pixel is black.
+#[test]
+fn night_is_black() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 160, 90);
+    let f = fish_at(Vec3::new(0.0, -2.0, 1.0), Vec3::X, 0.5);
+    let frame = r.render(&[f], &cam, &conditions(23.0));
+    assert!(frame.rgb.iter().all(|&v| v == 0));
+    assert_eq!(frame.visible_count(), 1, "labels do not depend on light");
+    let day = r.render(&[f], &cam, &conditions(11.5));
+    let mean = day.rgb.iter().map(|&v| v as f64).sum::<f64>() / day.rgb.len() as f64;
+    assert!(mean > 30.0, "{mean}");
+}
+
+/// Turbid water hides a far fish's contrast: the difference between fish
+/// pixels and open water shrinks as sediment rises.
+#[test]
+fn turbid_water_lowers_contrast() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 180);
+    let f = fish_at(Vec3::new(0.0, -2.0, 0.0), Vec3::X, 0.5);
+    let contrast = |sediment: f32| {
+        let mut c = conditions(11.5);
+        c.water = Water::new(
+            WaterParams {
+                sediment,
+                ..WaterParams::default()
+            },
+            true,
+        );
+        let fr = r.render(&[f], &cam, &c);
+        let mean = |want_fish: bool| {
+            let (mut s, mut n) = (0.0, 0.0);
+            for (k, &id) in fr.ids.iter().enumerate() {
+                if (id != 0) == want_fish {
+                    s += fr.rgb[3 * k + 1] as f64;
+                    n += 1.0;
+                }
+            }
+            s / n
+        };
+        (mean(true) - mean(false)).abs()
+    };
+    let (clear, turbid) = (contrast(0.0), contrast(5.0));
+    assert!(turbid < 0.5 * clear, "clear {clear}, turbid {turbid}");
+}
+
+fn frame_with(ids: Vec<u16>, w: u32, h: u32) -> Frame {
+    Frame {
+        width: w,
+        height: h,
+        rgb: vec![0; (w * h * 3) as usize],
+        ids,
+        fish: vec![],
+        gain: 1.0,
+    }
+}
+
+/// COCO RLE by hand: a 4 × 3 image (w = 4, h = 3) with id 7 at (x, y) = (1, 0),
+/// (1, 1), (2, 1). Column-major indices x·3 + y: 3, 4, 7 → counts
+/// [3, 2, 2, 1, 4]; the compressed string decodes back.
+#[test]
+fn rle_counts_by_hand() {
+    let mut ids = vec![0u16; 12];
+    for (x, y) in [(1, 0), (1, 1), (2, 1)] {
+        ids[y * 4 + x] = 7;
+    }
+    let f = frame_with(ids, 4, 3);
+    let c = rle_counts(&f, 7, [1, 0, 3, 2]);
+    assert_eq!(c, vec![3, 2, 2, 1, 4]);
+    assert_eq!(rle_from_string(&rle_string(&c)), c);
+    let big = vec![0, 100_000, 3, 70_000, 1, 2];
+    assert_eq!(rle_from_string(&rle_string(&big)), big);
+}
+
+/// YOLO lines: class and a box normalised to [0, 1] for a fish at the border.
+#[test]
+fn yolo_labels_are_normalised() {
+    let r = renderer();
+    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 240);
+    let fish = [
+        fish_at(Vec3::new(1.5, -2.0, 1.3), Vec3::X, 0.5),
+        fish_at(Vec3::new(-0.3, -1.6, 1.0), Vec3::Z, 0.4),
+    ];
+    let frame = r.render(&fish, &cam, &conditions(11.5));
+    let text = yolo_labels(&frame);
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 2);
+    for line in lines {
+        let v: Vec<f64> = line.split(' ').map(|s| s.parse().unwrap()).collect();
+        assert_eq!(v[0], 0.0);
+        for x in &v[1..] {
+            assert!((0.0..=1.0).contains(x), "{line}");
+        }
+        assert!(v[1] - v[3] / 2.0 >= -1e-6 && v[1] + v[3] / 2.0 <= 1.0 + 1e-6);
+    }
+}
