@@ -401,20 +401,41 @@ impl Renderer {
         let pinhole_clip = matches!(cam.lens, Lens::Pinhole { .. })
             && cam_pts.iter().any(|c| c.z < NEAR)
             && cam_pts.iter().any(|c| c.z >= NEAR);
-        let (ix0, iy0, ix1, iy1) = if pinhole_clip {
-            // Clipped triangles can reach anywhere on screen.
-            (0, 0, cam.width, cam.height)
-        } else {
-            if bx0 > bx1 {
-                return None;
+        // Triangles crossing a pinhole's near plane are clipped in camera
+        // space first; their new vertices widen the screen box.
+        let mut clipped: Vec<([RVert; 3], bool)> = Vec::new();
+        if pinhole_clip {
+            for (t, tri) in mesh.triangles.iter().enumerate() {
+                let [a, b, c] = tri.map(|k| k as usize);
+                if [a, b, c].iter().all(|&k| cam_pts[k].z >= NEAR) {
+                    continue;
+                }
+                let poly = clip_near([a, b, c].map(|k| (cam_pts[k], shades[k])));
+                let pv: Vec<RVert> = poly
+                    .iter()
+                    .filter_map(|(c, s)| cam.project_camera(*c).map(|p| RVert { p, shade: *s }))
+                    .collect();
+                for v in &pv {
+                    bx0 = bx0.min(v.p.x);
+                    by0 = by0.min(v.p.y);
+                    bx1 = bx1.max(v.p.x);
+                    by1 = by1.max(v.p.y);
+                }
+                for k in 1..pv.len().saturating_sub(1) {
+                    clipped.push(([pv[0], pv[k], pv[k + 1]], t < mesh.first_fin));
+                }
             }
-            (
-                (bx0.floor().max(0.0) as u32).min(cam.width),
-                (by0.floor().max(0.0) as u32).min(cam.height),
-                (bx1.ceil().max(0.0) as u32 + 1).min(cam.width),
-                (by1.ceil().max(0.0) as u32 + 1).min(cam.height),
-            )
-        };
+        }
+        if bx0 > bx1 {
+            return None;
+        }
+        let clamp = |v: f32, hi: u32| (v.max(0.0).min(hi as f32) as u32).min(hi);
+        let (ix0, iy0, ix1, iy1) = (
+            clamp(bx0.floor(), cam.width),
+            clamp(by0.floor(), cam.height),
+            clamp(bx1.ceil() + 1.0, cam.width),
+            clamp(by1.ceil() + 1.0, cam.height),
+        );
         if ix0 >= ix1 || iy0 >= iy1 {
             return None;
         }
@@ -445,22 +466,13 @@ impl Renderer {
         for (t, tri) in mesh.triangles.iter().enumerate() {
             let cull = t < mesh.first_fin;
             let [a, b, c] = tri.map(|k| k as usize);
-            if pinhole_clip && [a, b, c].iter().any(|&k| cam_pts[k].z < NEAR) {
-                // Clip against z = NEAR in camera space, then project.
-                let poly = clip_near([a, b, c].map(|k| (cam_pts[k], shades[k])));
-                let pv: Vec<RVert> = poly
-                    .iter()
-                    .filter_map(|(c, s)| cam.project_camera(*c).map(|p| RVert { p, shade: *s }))
-                    .collect();
-                for k in 1..pv.len().saturating_sub(1) {
-                    raster_tri(&mut local, [pv[0], pv[k], pv[k + 1]], cull, false, circle);
-                }
-                continue;
-            }
             let (Some(va), Some(vb), Some(vc)) = (verts[a], verts[b], verts[c]) else {
                 continue;
             };
             raster_tri(&mut local, [va, vb, vc], cull, fisheye, circle);
+        }
+        for (tri, cull) in clipped {
+            raster_tri(&mut local, tri, cull, false, circle);
         }
         // 3D box from the bent mesh's local bounds.
         let mut k = 0;

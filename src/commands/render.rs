@@ -1,0 +1,385 @@
+//! `deepfoids render`: a policy drives a scene, a camera of the field set-up
+//! films it, and every frame is written with its labels (YOLO, COCO, masks,
+//! per-frame JSON; see `deepfoids_render::dataset`). `deepfoids bench render`
+//! times it.
+//!
+//! Clips: frames come in clips of `--clip-frames` consecutive frames, each a
+//! fresh environment (seed derived from `--seed` and the clip index) warmed
+//! up for `--warmup` simulated seconds. With `--randomize` each clip draws its
+//! date, time of day, water, fish count and camera jitter; without it there
+//! is one clip in the scene's own conditions.
+//!
+//! Continuing: a frame is finished when its JSON exists (written last). A
+//! rerun with the same arguments skips finished frames; a partly finished clip
+//! is re-simulated from its start (the simulation is deterministic for a
+//! seed), and only its missing frames are rendered.
+
+use super::{load_scene, make_policy};
+use crate::cli::{PolicyArgs, SceneArgs};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use deepfoids_env::policy::action_buffers;
+use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
+use deepfoids_render::dataset::ImageFormat;
+use deepfoids_render::setup::{TailPhases, place_camera, poses, species_meshes};
+use deepfoids_render::{
+    CameraKind, ClipParams, Dataset, FrameMeta, RandomRanges, RenderConfig, Renderer,
+};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    #[arg(long, default_value = "foids")]
+    pub policy: String,
+    #[command(flatten)]
+    pub policy_args: PolicyArgs,
+    /// Frames to render
+    #[arg(long)]
+    pub frames: usize,
+    /// Frames per simulated second (rounded to whole decision ticks)
+    #[arg(long, default_value_t = 5.0)]
+    pub fps: f64,
+    /// Camera: bottom-fisheye (235°, cage bottom looking up), side (pinhole 90°), side-fisheye (155°)
+    #[arg(long, default_value = "bottom-fisheye", value_parser = parse_camera)]
+    pub camera: CameraKind,
+    /// Image width (pixels)
+    #[arg(long, default_value_t = 1280)]
+    pub width: u32,
+    /// Image height (pixels)
+    #[arg(long, default_value_t = 720)]
+    pub height: u32,
+    /// Draw time of day, date, chlorophyll, sediment, particles, fish count and camera jitter per clip
+    #[arg(long)]
+    pub randomize: bool,
+    /// Frames per clip with --randomize (without it all frames form one clip)
+    #[arg(long, default_value_t = 50)]
+    pub clip_frames: usize,
+    /// Simulated seconds before a clip's first frame (the school settles)
+    #[arg(long, default_value_t = 10.0)]
+    pub warmup: f64,
+    /// Image format: jpg or png
+    #[arg(long, default_value = "jpg", value_parser = parse_format)]
+    pub format: ImageFormat,
+    /// No progress bar
+    #[arg(long)]
+    pub quiet: bool,
+    /// Output folder (continued if it holds a render with the same arguments)
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchRenderArgs {
+    /// Scene id or path
+    #[arg(long, default_value = "coho_default", value_name = "ID|PATH")]
+    pub scene: String,
+    /// Timed frames
+    #[arg(long, default_value_t = 10)]
+    pub frames: usize,
+    #[arg(long, default_value_t = 1280)]
+    pub width: u32,
+    #[arg(long, default_value_t = 720)]
+    pub height: u32,
+    #[arg(long, default_value = "bottom-fisheye", value_parser = parse_camera)]
+    pub camera: CameraKind,
+    /// Who acts (as for `render`)
+    #[arg(long, default_value = "foids")]
+    pub policy: String,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+fn parse_camera(s: &str) -> Result<CameraKind, String> {
+    s.parse()
+}
+
+fn parse_format(s: &str) -> Result<ImageFormat, String> {
+    s.parse()
+}
+
+/// A clip's simulation: environment, policy and tail-beat phases.
+struct Clip {
+    env: Env,
+    policy: Box<dyn Policy>,
+    actions: Vec<Vec<f32>>,
+    phases: TailPhases,
+}
+
+impl Clip {
+    fn new(
+        dirs: &ConfigDirs,
+        scene: Scene,
+        seed: u64,
+        policy: &str,
+        pa: &PolicyArgs,
+    ) -> Result<Self> {
+        let env = Env::new(scene, seed);
+        let policy = make_policy(dirs, policy, seed, &env, pa)?;
+        let actions = action_buffers(&env);
+        let phases = TailPhases::new(env.world().len(), seed);
+        Ok(Self {
+            env,
+            policy,
+            actions,
+            phases,
+        })
+    }
+
+    fn step(&mut self, ticks: u64) -> Result<()> {
+        let dt = self.env.tick_seconds() as f32;
+        for _ in 0..ticks {
+            self.policy
+                .act(&self.env, &mut self.actions)
+                .map_err(|e| anyhow::anyhow!("policy {}: {e}", self.policy.name()))?;
+            self.env.step(&self.actions)?;
+            self.phases.advance(self.env.world(), dt);
+        }
+        Ok(())
+    }
+}
+
+fn ticks(seconds: f64, env: &Env) -> u64 {
+    (seconds / env.tick_seconds()).round().max(0.0) as u64
+}
+
+pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
+    if args.frames == 0 || !(args.fps > 0.0 && args.fps.is_finite()) {
+        bail!(
+            "--frames must be ≥ 1 and --fps positive (got {} and {})",
+            args.frames,
+            args.fps
+        );
+    }
+    if args.width < 16 || args.height < 16 || args.clip_frames == 0 {
+        bail!("--width and --height must be ≥ 16 and --clip-frames ≥ 1");
+    }
+    let scene = load_scene(dirs, &args.scene.scene, args.scene.phase)?;
+    let seed = args.scene.seed;
+    let clip_frames = if args.randomize {
+        args.clip_frames
+    } else {
+        args.frames
+    };
+    let ranges = RandomRanges::default();
+    let clips: Vec<ClipParams> = (0..args.frames.div_ceil(clip_frames))
+        .map(|c| {
+            if args.randomize {
+                ClipParams::random(&scene, c, seed, args.camera, &ranges)
+            } else {
+                ClipParams::from_scene(&scene, c, seed, args.camera)
+            }
+        })
+        .collect();
+    let dataset = Dataset::new(
+        &args.out,
+        args.format,
+        scene.species_names(),
+        scene
+            .behaviours
+            .iter()
+            .map(|b| b.size_class.clone())
+            .collect(),
+    );
+    let config = RenderConfig::default();
+    let request = json!({
+        "scene": scene.id, "policy": args.policy, "frames": args.frames, "fps": args.fps,
+        "camera": args.camera.as_str(), "width": args.width, "height": args.height,
+        "randomize": args.randomize, "clip_frames": clip_frames, "warmup": args.warmup,
+        "seed": seed, "format": args.format.ext(), "phase": args.scene.phase.as_str(),
+        "stochastic": args.policy_args.stochastic, "checkpoint": args.policy_args.checkpoint,
+    });
+    let optics: Vec<_> = clips
+        .iter()
+        .map(|c| {
+            let w = c.conditions(&scene, c.hours, true).water;
+            json!({"clip": c.clip, "ac": w.ac.to_array(), "extinction_c": w.c.to_array(),
+                   "diffuse_k": w.k.to_array(), "absorption": w.a.to_array()})
+        })
+        .collect();
+    let params = json!({
+        "scene": scene, "render": config, "randomize_ranges": ranges, "clips": clips,
+        "optics": optics, "classes": scene.species_names(),
+    });
+    dataset
+        .write_or_check_scene(&params, &request)
+        .with_context(|| format!("preparing {}", args.out.display()))?;
+    let renderer = Renderer::new(
+        config,
+        species_meshes(&scene),
+        Renderer::faces_of(&scene.cage()),
+    );
+
+    let done_before = (0..args.frames).filter(|&i| dataset.frame_done(i)).count();
+    let bar = progress(args.frames, args.quiet);
+    bar.set_position(done_before as u64);
+    let start = Instant::now();
+    let mut rendered = 0usize;
+    for clip in &clips {
+        let first = clip.clip * clip_frames;
+        let range = first..(first + clip_frames).min(args.frames);
+        if range.clone().all(|i| dataset.frame_done(i)) {
+            continue;
+        }
+        let cs = clip.apply(&scene);
+        let mut sim = Clip::new(dirs, cs.clone(), clip.seed, &args.policy, &args.policy_args)?;
+        let per_frame = ticks(1.0 / args.fps, &sim.env).max(1);
+        sim.step(ticks(args.warmup, &sim.env))?;
+        let camera = place_camera(&cs.cage(), &clip.camera, args.width, args.height);
+        let behaviour_of = sim.env.world().behaviour.clone();
+        for (k, i) in range.enumerate() {
+            if k > 0 {
+                sim.step(per_frame)?;
+            }
+            if dataset.frame_done(i) {
+                continue;
+            }
+            let hours = sim.env.clock_hours();
+            let cond = clip.conditions(&cs, hours, true);
+            let frame = renderer.render(&poses(sim.env.world(), &sim.phases), &camera, &cond);
+            let meta = FrameMeta {
+                clip: clip.clip,
+                time: sim.env.output().time,
+                clock_hours: hours,
+                sun_elevation_deg: cond.light.sun_elevation_deg,
+                camera,
+            };
+            dataset
+                .write_frame(i, &frame, &behaviour_of, &meta)
+                .with_context(|| format!("writing frame {i}"))?;
+            rendered += 1;
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+    let annotations = dataset.finish(args.frames)?;
+    let wall = start.elapsed().as_secs_f64();
+    println!(
+        "{}: {} frames ({} rendered now, {} kept), {} annotations, {:.1} MB in {}; {:.2} frames/s",
+        scene.id,
+        args.frames,
+        rendered,
+        done_before,
+        annotations,
+        dir_bytes(&args.out) as f64 / 1e6,
+        args.out.display(),
+        rendered as f64 / wall.max(1e-9)
+    );
+    Ok(())
+}
+
+fn progress(n: usize, quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(n as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "rendering [{bar:40}] {pos}/{len} frames, {per_sec}, eta {eta}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Total size of the files under `dir` (bytes).
+fn dir_bytes(dir: &Path) -> u64 {
+    std::fs::read_dir(dir)
+        .map(|rd| {
+            rd.flatten()
+                .map(|e| match e.metadata() {
+                    Ok(m) if m.is_dir() => dir_bytes(&e.path()),
+                    Ok(m) => m.len(),
+                    Err(_) => 0,
+                })
+                .sum()
+        })
+        .unwrap_or(0)
+}
+
+/// `deepfoids bench render`: frames per second of rendering with every label
+/// written (image, mask, YOLO, frame JSON), and with the simulation included.
+pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
+    let scene = load_scene(dirs, &args.scene, deepfoids_env::Phase::Pretrain)?;
+    let clip = ClipParams::from_scene(&scene, 0, args.seed, args.camera);
+    let pa = PolicyArgs {
+        checkpoint: None,
+        stochastic: false,
+        backend: deepfoids_ppo::Backend::Flex,
+    };
+    let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa)?;
+    sim.step(ticks(10.0, &sim.env))?;
+    let renderer = Renderer::new(
+        RenderConfig::default(),
+        species_meshes(&scene),
+        Renderer::faces_of(&scene.cage()),
+    );
+    let camera = place_camera(&scene.cage(), &clip.camera, args.width, args.height);
+    let tmp = std::env::temp_dir().join(format!("deepfoids-bench-render-{}", std::process::id()));
+    let dataset = Dataset::new(
+        &tmp,
+        ImageFormat::Jpg,
+        scene.species_names(),
+        scene
+            .behaviours
+            .iter()
+            .map(|b| b.size_class.clone())
+            .collect(),
+    );
+    let behaviour_of = sim.env.world().behaviour.clone();
+    let per_frame = ticks(0.2, &sim.env).max(1);
+    let (mut t_sim, mut t_render, mut t_write, mut visible) = (0.0, 0.0, 0.0, 0usize);
+    for i in 0..args.frames {
+        let t = Instant::now();
+        sim.step(per_frame)?;
+        t_sim += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let hours = sim.env.clock_hours();
+        let cond = clip.conditions(&scene, hours, true);
+        let frame = renderer.render(&poses(sim.env.world(), &sim.phases), &camera, &cond);
+        t_render += t.elapsed().as_secs_f64();
+        visible += frame.visible_count();
+        let t = Instant::now();
+        let meta = FrameMeta {
+            clip: 0,
+            time: sim.env.output().time,
+            clock_hours: hours,
+            sun_elevation_deg: cond.light.sun_elevation_deg,
+            camera,
+        };
+        dataset.write_frame(i, &frame, &behaviour_of, &meta)?;
+        t_write += t.elapsed().as_secs_f64();
+    }
+    let bytes = dir_bytes(&tmp);
+    let _ = std::fs::remove_dir_all(&tmp);
+    let n = args.frames as f64;
+    println!(
+        "{}: {} fish, {}×{} {}, {} threads, policy {}: {:.1} visible fish per frame",
+        scene.id,
+        sim.env.world().len(),
+        args.width,
+        args.height,
+        args.camera.as_str(),
+        rayon::current_num_threads(),
+        sim.policy.name(),
+        visible as f64 / n
+    );
+    println!(
+        "{:.2} frames/s rendered with all labels written (render + labels {:.0} ms, encode + write {:.0} ms per frame)",
+        n / (t_render + t_write),
+        1e3 * t_render / n,
+        1e3 * t_write / n
+    );
+    println!(
+        "{:.2} frames/s including the simulation ({:.0} ms per frame at 5 fps); {:.2} MB per 1,000 frames",
+        n / (t_sim + t_render + t_write),
+        1e3 * t_sim / n,
+        bytes as f64 / n * 1000.0 / 1e6
+    );
+    Ok(())
+}

@@ -1,0 +1,144 @@
+//! Integration tests of `deepfoids render`: the dataset's files and formats,
+//! and continuing an interrupted render.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn deepfoids(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_deepfoids"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn render(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "render",
+        "--scene",
+        "seabream_default",
+        "--policy",
+        "foids",
+        "--frames",
+        "4",
+        "--width",
+        "160",
+        "--height",
+        "96",
+        "--warmup",
+        "1",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    deepfoids(&args)
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// A side-camera render of 10 seabream: every file of the dataset exists,
+/// YOLO boxes are normalised, COCO counts match the YOLO lines, and the mask
+/// is a 16-bit PNG whose ids match the labelled fish. The dataset stays at
+/// target/render-check for `.ci/check_coco.py` (pycocotools).
+#[test]
+fn render_writes_a_yolo_and_coco_dataset() {
+    let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/render-check");
+    let _ = std::fs::remove_dir_all(&out);
+    let o = render(&out, &["--camera", "side"]);
+    assert!(o.status.success(), "{}", text(&o));
+    for f in ["data.yaml", "annotations.json", "scene.json"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let coco = json(&out.join("annotations.json"));
+    assert_eq!(coco["images"].as_array().unwrap().len(), 4);
+    assert_eq!(coco["categories"][0]["name"], "seabream");
+    let mut yolo_lines = 0;
+    for i in 0..4 {
+        let name = format!("frame_{i:06}");
+        assert!(out.join(format!("images/{name}.jpg")).is_file());
+        let labels = std::fs::read_to_string(out.join(format!("labels/{name}.txt"))).unwrap();
+        for line in labels.lines() {
+            let v: Vec<f64> = line.split(' ').map(|s| s.parse().unwrap()).collect();
+            assert_eq!(v.len(), 5);
+            assert!(v[1..].iter().all(|x| (0.0..=1.0).contains(x)), "{line}");
+            yolo_lines += 1;
+        }
+        let mask = image::open(out.join(format!("masks/{name}.png"))).unwrap();
+        let mask = mask.as_luma16().expect("a 16-bit mask").clone();
+        assert_eq!(mask.dimensions(), (160, 96));
+        let frame = json(&out.join(format!("frames/{name}.json")));
+        let fish = frame["fish"].as_array().unwrap();
+        for f in fish {
+            let id = f["label"]["fish"].as_u64().unwrap() as u16 + 1;
+            let n = mask.pixels().filter(|p| p.0[0] == id).count() as u64;
+            assert_eq!(n, f["label"]["visible_pixels"].as_u64().unwrap());
+        }
+        assert_eq!(
+            frame["visible_fish"].as_u64().unwrap() as usize,
+            fish.iter()
+                .filter(|f| f["label"]["visible_pixels"].as_u64().unwrap() > 0)
+                .count()
+        );
+    }
+    assert!(yolo_lines > 0, "no fish seen by the side camera");
+    assert_eq!(coco["annotations"].as_array().unwrap().len(), yolo_lines);
+    let yaml = std::fs::read_to_string(out.join("data.yaml")).unwrap();
+    assert!(
+        yaml.contains("train: images") && yaml.contains("0: seabream"),
+        "{yaml}"
+    );
+}
+
+/// An interrupted render continues: a frame removed afterwards is rendered
+/// again, identical (the clip is re-simulated from its seed), and the others
+/// are kept. Different arguments in the same folder are refused.
+#[test]
+fn interrupted_render_continues_identically() {
+    let out = std::env::temp_dir().join(format!("deepfoids-render-resume-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let args = ["--randomize", "--clip-frames", "2", "--seed", "3"];
+    let o = render(&out, &args);
+    assert!(o.status.success(), "{}", text(&o));
+    let label = out.join("labels/frame_000003.txt");
+    let before = std::fs::read_to_string(&label).unwrap();
+    let frame_json = std::fs::read_to_string(out.join("frames/frame_000003.json")).unwrap();
+    std::fs::remove_file(out.join("frames/frame_000003.json")).unwrap();
+    std::fs::remove_file(&label).unwrap();
+    let kept = std::fs::metadata(out.join("frames/frame_000000.json"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    let o = render(&out, &args);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("1 rendered now, 3 kept"), "{}", text(&o));
+    assert_eq!(std::fs::read_to_string(&label).unwrap(), before);
+    assert_eq!(
+        std::fs::read_to_string(out.join("frames/frame_000003.json")).unwrap(),
+        frame_json
+    );
+    let again = std::fs::metadata(out.join("frames/frame_000000.json"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    assert_eq!(kept, again);
+    // Two clips with their own draws.
+    let scene = json(&out.join("scene.json"));
+    let clips = scene["clips"].as_array().unwrap();
+    assert_eq!(clips.len(), 2);
+    assert_ne!(clips[0]["water"], clips[1]["water"]);
+    let o = render(&out, &["--randomize", "--clip-frames", "2", "--seed", "4"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("other arguments"), "{}", text(&o));
+    let _ = std::fs::remove_dir_all(&out);
+}
