@@ -127,13 +127,13 @@ pub struct Rng(u64);
 
 impl Rng {
     pub fn new(seed: u64, clip: u64) -> Self {
-        let mut r = Rng(seed ^ 0x5EED_0F_F15E_u64.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let mut r = Rng(seed ^ 0x005E_ED0F_F15E_u64.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         r.0 = r
-            .next()
+            .next_u64()
             .wrapping_add(clip.wrapping_mul(0xD6E8_FEB8_6659_FD93));
         r
     }
-    pub fn next(&mut self) -> u64 {
+    pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -142,7 +142,7 @@ impl Rng {
     }
     /// Uniform in [lo, hi).
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * ((self.next() >> 40) as f32 / (1u64 << 24) as f32)
+        lo + (hi - lo) * ((self.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
     }
 }
 
@@ -234,7 +234,7 @@ impl ClipParams {
         let mut g = Rng::new(seed, clip as u64);
         let u = |g: &mut Rng, [a, b]: [f32; 2]| g.range(a, b);
         let year = p.year;
-        let doy = (g.next() % 365) as u32 + 1;
+        let doy = (g.next_u64() % 365) as u32 + 1;
         let (mut month, mut left) = (1, doy);
         while left > days_in_month(year, month) {
             left -= days_in_month(year, month);
@@ -251,7 +251,7 @@ impl ClipParams {
         };
         p.fish_fraction = u(&mut g, r.fish_fraction);
         let cage = scene.cage();
-        p.camera.wall = (g.next() % wall_count(&cage) as u64) as usize;
+        p.camera.wall = (g.next_u64() % wall_count(&cage) as u64) as usize;
         p.camera.depth = g.range(0.5, (cage.height - 0.5).max(0.6));
         let (m, d) = (r.jitter_m, r.jitter_deg);
         p.camera.jitter = Jitter {
