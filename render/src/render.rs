@@ -309,9 +309,10 @@ impl Renderer {
                     full_pixels: n,
                     visibility: v.4 as f32 / n as f32,
                     truncated: l.truncated,
-                    box3d_world: l.box3d.map(|p| p.to_array()),
-                    box3d_camera: l.box3d.map(|p| camera.to_camera(p).to_array()),
-                    distance: l.distance,
+                    // Millimetres are plenty and keep the label files small.
+                    box3d_world: l.box3d.map(|p| mm(p).to_array()),
+                    box3d_camera: l.box3d.map(|p| mm(camera.to_camera(p)).to_array()),
+                    distance: (l.distance * 1e3).round() / 1e3,
                 })
             })
             .collect();
@@ -583,6 +584,11 @@ impl Renderer {
         // Radiance is multiplied by n² entering the denser medium.
         (light.sky_radiance + glare) * ti * N_WATER * N_WATER
     }
+}
+
+/// A point rounded to whole millimetres.
+fn mm(p: Vec3) -> Vec3 {
+    (p * 1e3).round() / 1e3
 }
 
 /// Fresnel reflectance at incidence `theta` (air side).

@@ -103,7 +103,7 @@ fn single_fish_box_matches_the_projected_mesh_pinhole() {
     let n = frame.ids.iter().filter(|&&v| v == 1).count() as u32;
     assert_eq!(n, l.visible_pixels);
     // 3D box: corners at ±half extents around the centre; the camera
-    // coordinates are the world corners seen from the camera.
+    // coordinates are the world corners seen from the camera (both rounded to mm).
     let c = l
         .box3d_world
         .iter()
@@ -111,7 +111,7 @@ fn single_fish_box_matches_the_projected_mesh_pinhole() {
         / 8.0;
     assert!((c - f.position).length() < 0.05 * f.bl, "{c}");
     for (w, k) in l.box3d_world.iter().zip(&l.box3d_camera) {
-        assert!((cam.to_camera(Vec3::from(*w)) - Vec3::from(*k)).length() < 1e-5);
+        assert!((cam.to_camera(Vec3::from(*w)) - Vec3::from(*k)).length() < 2e-3);
     }
 }
 
