@@ -42,6 +42,8 @@ pub enum Command {
     Export(ExportArgs),
     /// Compare runs (e.g. PPO against SAC): learning curves, reward terms, and a table of evaluations
     Compare(CompareArgs),
+    /// Render a labelled image dataset (YOLO, COCO, masks) of a scene driven by a policy
+    Render(commands::render::RenderArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -260,6 +262,8 @@ pub enum BenchCommand {
     Train(BenchTrainArgs),
     /// Inference speed of a trained policy: Burn against its ONNX export through tract
     Policy(BenchPolicyArgs),
+    /// Dataset rendering speed: frames per second with all labels
+    Render(commands::render::BenchRenderArgs),
 }
 
 #[derive(Args, Debug)]
@@ -341,5 +345,9 @@ pub fn run() -> Result<()> {
         Some(Command::Bench {
             what: BenchCommand::Policy(a),
         }) => commands::bench::policy(&a),
+        Some(Command::Render(a)) => commands::render::run(&dirs, &a),
+        Some(Command::Bench {
+            what: BenchCommand::Render(a),
+        }) => commands::render::bench(&dirs, &a),
     }
 }

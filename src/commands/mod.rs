@@ -5,6 +5,7 @@ pub mod compare;
 pub mod eval;
 pub mod export;
 pub mod pipeline;
+pub mod render;
 pub mod scenes;
 pub mod sensor_view;
 pub mod simulate;
