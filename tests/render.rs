@@ -64,6 +64,7 @@ fn render_writes_a_yolo_and_coco_dataset() {
     assert_eq!(coco["images"].as_array().unwrap().len(), 4);
     assert_eq!(coco["categories"][0]["name"], "seabream");
     let mut yolo_lines = 0;
+    let mut yolo_lines_in_frames = 0;
     for i in 0..4 {
         let name = format!("frame_{i:06}");
         assert!(out.join(format!("images/{name}.jpg")).is_file());
@@ -84,14 +85,31 @@ fn render_writes_a_yolo_and_coco_dataset() {
             let n = mask.pixels().filter(|p| p.0[0] == id).count() as u64;
             assert_eq!(n, f["label"]["visible_pixels"].as_u64().unwrap());
         }
-        assert_eq!(
-            frame["visible_fish"].as_u64().unwrap() as usize,
-            fish.iter()
-                .filter(|f| f["label"]["visible_pixels"].as_u64().unwrap() > 0)
-                .count()
-        );
+        let count = |key: &str, pred: &dyn Fn(&serde_json::Value) -> bool| {
+            assert_eq!(
+                frame[key].as_u64().unwrap() as usize,
+                fish.iter().filter(|f| pred(&f["label"])).count(),
+                "{key}"
+            );
+        };
+        count("visible_fish", &|l| l["detectable"] == true);
+        count("in_view_fish", &|l| {
+            l["visible_pixels"].as_u64().unwrap() > 0
+        });
+        // Detectable: visible pixels and the default least contrast, 0.01.
+        for f in fish {
+            let l = &f["label"];
+            let want = l["visible_pixels"].as_u64().unwrap() > 0
+                && l["contrast"].as_f64().unwrap() >= 0.01 - 1e-6;
+            assert_eq!(l["detectable"] == true, want, "{l}");
+        }
+        yolo_lines_in_frames += fish
+            .iter()
+            .filter(|f| f["label"]["detectable"] == true)
+            .count();
     }
     assert!(yolo_lines > 0, "no fish seen by the side camera");
+    assert_eq!(yolo_lines, yolo_lines_in_frames);
     assert_eq!(coco["annotations"].as_array().unwrap().len(), yolo_lines);
     let yaml = std::fs::read_to_string(out.join("data.yaml")).unwrap();
     assert!(

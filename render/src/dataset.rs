@@ -195,6 +195,7 @@ impl Dataset {
             "width": frame.width,
             "height": frame.height,
             "visible_fish": frame.visible_count(),
+            "in_view_fish": frame.in_view_count(),
             "exposure_gain": frame.gain,
             "meta": meta,
             "fish": fish,
@@ -276,6 +277,9 @@ impl Dataset {
                 let Some(bx) = l["box_visible"].as_array() else {
                     continue;
                 };
+                if l["detectable"] != Value::Bool(true) {
+                    continue;
+                }
                 let b: Vec<f64> = bx.iter().filter_map(|x| x.as_f64()).collect();
                 let full: Vec<f64> = l["box_full"]
                     .as_array()
@@ -330,11 +334,12 @@ impl Dataset {
     }
 }
 
-/// YOLO lines `class cx cy w h` (normalised) for every fish with visible pixels.
+/// YOLO lines `class cx cy w h` (normalised) for every detectable fish
+/// (visible pixels and enough contrast), box of the visible silhouette.
 pub fn yolo_labels(frame: &Frame) -> String {
     let (w, h) = (frame.width as f64, frame.height as f64);
     let mut s = String::new();
-    for f in &frame.fish {
+    for f in frame.fish.iter().filter(|f| f.detectable) {
         if let Some([x0, y0, x1, y1]) = f.box_visible {
             let (x0, y0, x1, y1) = (x0 as f64, y0 as f64, x1 as f64, y1 as f64);
             s.push_str(&format!(

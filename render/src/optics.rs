@@ -54,6 +54,7 @@ use deepfoids_env::sun::SunPlace;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
+use std::sync::OnceLock;
 
 /// Wavelength of each channel (nm).
 pub const WAVELENGTHS_NM: [f32; 3] = [650.0, 550.0, 450.0];
@@ -137,6 +138,71 @@ pub fn integrate_sphere(f: impl Fn(f32) -> f32, lo: f32, hi: f32, n: usize) -> f
     2.0 * PI * h * (0.5 * g(0) + inner + 0.5 * g(n))
 }
 
+/// Entries of the diffuse phase table over `cos θ_v ∈ [−1, 1]`.
+const CONE_TABLE: usize = 129;
+
+/// The phase functions of water, small and large particles averaged over the
+/// diffuse light's directions, per unit horizontal irradiance.
+///
+/// Below a flat surface the sky's light arrives from within Snell's cone,
+/// half-angle `θc = asin(1/n)`, with uniform radiance `L`, so the horizontal
+/// irradiance is `E = L·π·sin²θc` and the light scattered into a view ray
+/// `v` is `J = L·∫_cone p(u·v) dω_u = E·P(v_y)` with
+/// `P(v_y) = ∫_cone p(u·v) dω_u / (π·sin²θc)` (u runs over the directions
+/// the light comes from). Tabulated once over `v_y` by the midpoint rule;
+/// unlike the phase value at the zenith it has no sharp forward spike, so
+/// the sky does not draw a bright spot straight above a camera.
+struct ConePhases {
+    water: [f32; CONE_TABLE],
+    small: [f32; CONE_TABLE],
+    large: [f32; CONE_TABLE],
+}
+
+fn cone_phases() -> &'static ConePhases {
+    static TABLE: OnceLock<ConePhases> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let water_norm = 1.0 / integrate_sphere(phase_water_shape, 0.0, PI, 720);
+        let theta_c = (1.0 / N_WATER).asin();
+        let (n_theta, n_phi) = (160, 180);
+        let (dt, dp) = (theta_c / n_theta as f32, PI / n_phi as f32);
+        let norm = PI * theta_c.sin().powi(2);
+        let mut t = ConePhases {
+            water: [0.0; CONE_TABLE],
+            small: [0.0; CONE_TABLE],
+            large: [0.0; CONE_TABLE],
+        };
+        for k in 0..CONE_TABLE {
+            let mu = -1.0 + 2.0 * k as f32 / (CONE_TABLE - 1) as f32;
+            let sv = (1.0 - mu * mu).max(0.0).sqrt();
+            let (mut w, mut s, mut l) = (0.0f64, 0.0f64, 0.0f64);
+            for i in 0..n_theta {
+                let th = (i as f32 + 0.5) * dt;
+                // Both halves of the azimuth: the integrand is even in φ.
+                let dw = (2.0 * th.sin() * dt * dp) as f64;
+                for j in 0..n_phi {
+                    let ph = (j as f32 + 0.5) * dp;
+                    let c = th.cos() * mu + th.sin() * sv * ph.cos();
+                    w += (phase_water_shape(c) * water_norm) as f64 * dw;
+                    s += phase_hg(G_SMALL, c) as f64 * dw;
+                    l += phase_hg(G_LARGE, c) as f64 * dw;
+                }
+            }
+            t.water[k] = (w / norm as f64) as f32;
+            t.small[k] = (s / norm as f64) as f32;
+            t.large[k] = (l / norm as f64) as f32;
+        }
+        t
+    })
+}
+
+/// Linear interpolation of a cone table at `cos θ_v = mu`.
+fn cone_lookup(table: &[f32; CONE_TABLE], mu: f32) -> f32 {
+    let x = (mu.clamp(-1.0, 1.0) + 1.0) * 0.5 * (CONE_TABLE - 1) as f32;
+    let i = (x as usize).min(CONE_TABLE - 2);
+    let f = x - i as f32;
+    table[i] * (1.0 - f) + table[i + 1] * f
+}
+
 /// The optical properties of one frame's water, per channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Water {
@@ -205,6 +271,16 @@ impl Water {
         self.b_water * (phase_water_shape(cos_psi) * self.water_norm)
             + self.b_small * phase_hg(G_SMALL, cos_psi)
             + self.b_large * phase_hg(G_LARGE, cos_psi)
+    }
+
+    /// Scattering of the diffuse sky light into a ray whose direction has
+    /// vertical component `v_y`, per unit horizontal irradiance (1/(m·sr));
+    /// see [`ConePhases`].
+    pub fn vsf_diffuse(&self, v_y: f32) -> Vec3 {
+        let t = cone_phases();
+        self.b_water * cone_lookup(&t.water, v_y)
+            + self.b_small * cone_lookup(&t.small, v_y)
+            + self.b_large * cone_lookup(&t.large, v_y)
     }
 
     /// Beam transmittance over `t` metres, `exp(−c·t)`.
@@ -308,11 +384,8 @@ impl Light {
         // ψ is the angle between the light's travel (−s) and the scattered
         // direction towards the camera (−v): cos ψ = s·v.
         let beta_sun = water.vsf(self.sun_dir_water.dot(v));
-        // Diffuse light travels down within Snell's cone: half the zenith
-        // phase value, half isotropic.
-        let iso = (water.b_water + water.b_small + water.b_large) / (4.0 * PI);
-        let beta_diff = 0.5 * water.vsf(v.y) + 0.5 * iso;
-        beam * beta_sun + diff * beta_diff
+        // Diffuse light comes from within Snell's cone.
+        beam * beta_sun + diff * water.vsf_diffuse(v.y)
     }
 
     /// In-scattered radiance along `t` metres of a ray from depth `d0` in
@@ -420,6 +493,39 @@ mod tests {
         let total = integrate_sphere(|c| w.vsf(c).y, 0.0, PI, 20_000);
         let b = w.b_water.y + w.b_small.y + w.b_large.y;
         assert!((total - b).abs() < 2e-3 * b, "{total} vs {b}");
+    }
+
+    /// The diffuse phase table conserves energy: over all view directions
+    /// `2π ∫ P(μ) dμ = Ω_cone/(π sin²θc) = 2(1 − cos θc)/sin²θc` (1.2007 for
+    /// n = 1.34) for every phase function; water's nearly isotropic shape
+    /// gives about the same value everywhere, the large particles' forward
+    /// lobe is brightest straight up and bounded by its point value.
+    #[test]
+    fn diffuse_phase_table_conserves_energy() {
+        let tc = (1.0 / N_WATER).asin();
+        let want = 2.0 * (1.0 - tc.cos()) / tc.sin().powi(2);
+        assert!((want - 1.2007).abs() < 1e-3, "{want}");
+        let t = cone_phases();
+        for (name, tab) in [
+            ("water", &t.water),
+            ("small", &t.small),
+            ("large", &t.large),
+        ] {
+            let total = 2.0 * PI * integrate_lin(|mu| cone_lookup(tab, mu), -1.0, 1.0, 20_000);
+            assert!(
+                (total - want).abs() < 5e-3 * want,
+                "{name}: {total} vs {want}"
+            );
+        }
+        let mid = cone_lookup(&t.water, 0.0);
+        assert!((cone_lookup(&t.water, 1.0) / mid - 1.0).abs() < 0.6);
+        assert!(cone_lookup(&t.large, 1.0) > 20.0 * cone_lookup(&t.large, -0.5));
+        assert!(cone_lookup(&t.large, 1.0) < phase_hg(G_LARGE, 1.0));
+    }
+
+    fn integrate_lin(f: impl Fn(f32) -> f32, lo: f32, hi: f32, n: usize) -> f32 {
+        let h = (hi - lo) / n as f32;
+        (0..n).map(|i| f(lo + (i as f32 + 0.5) * h) * h).sum()
     }
 
     /// With scattering off, a white surface (radiance 1) at distance d appears

@@ -15,7 +15,11 @@
 //!    wall, the net bottom or the surface (Snell's window, total internal
 //!    reflection outside it). Then `L·exp(−c·t) + in-scatter` (see
 //!    [`crate::optics`]), auto exposure, tone curve, sRGB.
-//! 4. Labels from the id buffer: visible pixels and visible 2D box per fish.
+//!    Fish pixels are shaded a second time as if the fish were not there; the
+//!    largest channel difference is the pixel's contrast.
+//! 4. Labels from the id buffer: visible pixels, visible 2D box and mean
+//!    contrast per fish; a fish with visible pixels and enough contrast is
+//!    detectable (labelled for detectors).
 //!
 //! Fisheye cameras project the vertices with `r = f·θ` and rasterise straight
 //! triangle edges between them; the meshes are fine enough (≈ 400 triangles
@@ -48,6 +52,12 @@ pub struct RenderConfig {
     pub exposure: f32,
     /// Animate the tail beat from each fish's speed; true.
     pub tail_beat: bool,
+    /// A fish is *detectable* (labelled in YOLO and COCO) when it has visible
+    /// pixels and its mean contrast against the water behind it is at least
+    /// this (0–1 of the 8-bit range); 0.01 ≈ 2.5 grey levels, about where a
+    /// faint fish can still be made out in a frame. Fish lost in turbid water
+    /// or darkness keep their entry in the frame JSON only.
+    pub min_contrast: f32,
 }
 
 impl Default for RenderConfig {
@@ -59,6 +69,7 @@ impl Default for RenderConfig {
             exposure_stops: 2.0,
             exposure: 1.2,
             tail_beat: true,
+            min_contrast: 0.01,
         }
     }
 }
@@ -123,6 +134,13 @@ pub struct FishLabel {
     pub box3d_camera: [[f32; 3]; 8],
     /// Distance from the camera to the body centre (m).
     pub distance: f32,
+    /// Mean over the visible pixels of the largest per-channel difference
+    /// (0–1 of the 8-bit range) between the fish and what the pixel shows
+    /// without it: how much the fish stands out from the water behind it.
+    pub contrast: f32,
+    /// Visible pixels and `contrast ≥ RenderConfig::min_contrast`: the fish
+    /// can be seen in the image, so it is labelled for detectors.
+    pub detectable: bool,
 }
 
 /// A rendered frame.
@@ -141,9 +159,15 @@ pub struct Frame {
 }
 
 impl Frame {
-    /// Fish with at least one visible pixel.
-    pub fn visible_count(&self) -> usize {
+    /// Fish with at least one visible pixel (in view and not hidden by others,
+    /// however dark or turbid the water).
+    pub fn in_view_count(&self) -> usize {
         self.fish.iter().filter(|f| f.visible_pixels > 0).count()
+    }
+
+    /// Fish that can be seen in the image: the per-frame visible fish count.
+    pub fn visible_count(&self) -> usize {
+        self.fish.iter().filter(|f| f.detectable).count()
     }
 }
 
@@ -255,23 +279,36 @@ impl Renderer {
                     }
                 }
             });
-        // 3. Water and light per pixel.
+        // 3. Water and light per pixel; for fish pixels also the water behind
+        // the fish, for its contrast (largest channel difference, 0–255).
         let gain = self.gain(camera, cond);
         let mut rgb = vec![0u8; w * h * 3];
-        rgb.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-            for x in 0..w {
-                let k = y * w + x;
-                let c = self.pixel(camera, cond, x, y, depth[k], shade[k], ids[k] != 0);
-                let out = tone(c * gain);
-                row[3 * x..3 * x + 3].copy_from_slice(&out);
-            }
-        });
+        let mut contrast = vec![0u8; w * h];
+        rgb.par_chunks_mut(w * 3)
+            .zip(contrast.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (row, crow))| {
+                for x in 0..w {
+                    let k = y * w + x;
+                    let is_fish = ids[k] != 0;
+                    let c = self.pixel(camera, cond, x, y, depth[k], shade[k], is_fish);
+                    let out = tone(c * gain);
+                    if is_fish {
+                        let bg = self.pixel(camera, cond, x, y, f32::INFINITY, Vec3::ZERO, false);
+                        let bg = tone(bg * gain);
+                        crow[x] = (0..3).map(|j| out[j].abs_diff(bg[j])).max().unwrap_or(0);
+                    }
+                    row[3 * x..3 * x + 3].copy_from_slice(&out);
+                }
+            });
         // 4. Labels.
         let mut vis = vec![(u32::MAX, u32::MAX, 0u32, 0u32, 0u32); fish.len()];
+        let mut contrast_sum = vec![0u64; fish.len()];
         for y in 0..h {
             for x in 0..w {
                 let id = ids[y * w + x];
                 if id != 0 {
+                    contrast_sum[id as usize - 1] += contrast[y * w + x] as u64;
                     let v = &mut vis[id as usize - 1];
                     v.0 = v.0.min(x as u32);
                     v.1 = v.1.min(y as u32);
@@ -300,6 +337,12 @@ impl Renderer {
                     return None;
                 }
                 let v = vis[l.fish];
+                let contrast = if v.4 > 0 {
+                    contrast_sum[l.fish] as f32 / (255.0 * v.4 as f32)
+                } else {
+                    0.0
+                };
+                let contrast = (contrast * 1e4).round() / 1e4;
                 Some(FishLabel {
                     fish: l.fish,
                     species: fish[l.fish].species,
@@ -313,6 +356,8 @@ impl Renderer {
                     box3d_world: l.box3d.map(|p| mm(p).to_array()),
                     box3d_camera: l.box3d.map(|p| mm(camera.to_camera(p)).to_array()),
                     distance: (l.distance * 1e3).round() / 1e3,
+                    contrast,
+                    detectable: v.4 > 0 && contrast >= self.config.min_contrast,
                 })
             })
             .collect();

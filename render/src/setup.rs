@@ -149,8 +149,13 @@ impl Rng {
 /// Ranges of `--randomize`, each drawn uniformly per clip.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RandomRanges {
-    /// Local time of day (hours): 5:30–19:00 covers dawn, noon and dusk; some clips are dark.
+    /// Local time of day (hours): 5:30–19:00 covers dawn, noon and dusk,
+    /// narrowed on each date to the hours when the sun is at least
+    /// `min_sun_elevation_deg` high (a dataset of black night frames teaches a
+    /// detector nothing; dusk stays in).
     pub hours: [f32; 2],
+    /// Lowest solar elevation of a drawn time (degrees); 2.
+    pub min_sun_elevation_deg: f32,
     /// Chlorophyll (mg/m³): 0–9, the range of the thesis' Fig. 4.17a.
     pub chlorophyll: [f32; 2],
     /// Sediment (g/m³): 0–5, Fig. 4.17b.
@@ -158,6 +163,13 @@ pub struct RandomRanges {
     /// Kopelevich small and large particles (ppm): 0–4 each (the range).
     pub small_particles: [f32; 2],
     pub large_particles: [f32; 2],
+    /// Skew of the water draws: chlorophyll, sediment and particles are
+    /// `lo + (hi − lo)·u^skew` with `u` uniform; 4. Uniform draws (skew 1)
+    /// over these ranges give a median extinction of 5.2 /m at 550 nm, under
+    /// a metre of sight, so most frames would show empty murk; with 4 the
+    /// median is 1.7 /m (10–90 %: 0.4–4.7 /m; coastal cages see 0.5–3 /m) and
+    /// the murky end of every range is still drawn.
+    pub water_skew: f32,
     /// Share of the scene's fish that are simulated (per group, at least 1 fish).
     pub fish_fraction: [f32; 2],
     /// Camera position jitter (± m per axis) and angle jitter (± degrees).
@@ -169,14 +181,42 @@ impl Default for RandomRanges {
     fn default() -> Self {
         Self {
             hours: [5.5, 19.0],
+            min_sun_elevation_deg: 2.0,
             chlorophyll: [0.0, 9.0],
             sediment: [0.0, 5.0],
             small_particles: [0.0, 4.0],
             large_particles: [0.0, 4.0],
+            water_skew: 4.0,
             fish_fraction: [0.2, 1.0],
             jitter_m: 0.1,
             jitter_deg: 5.0,
         }
+    }
+}
+
+/// The part of `r.hours` on a date when the sun stands at least
+/// `r.min_sun_elevation_deg` high at the scene's site, to the minute (the
+/// elevation rises and falls once a day, so it is one interval). The whole
+/// range if the sun never gets that high (polar night).
+fn daylight(scene: &Scene, year: i32, month: u32, day: u32, r: &RandomRanges) -> [f32; 2] {
+    let site = &scene.site;
+    let place = SunPlace {
+        latitude_deg: site.latitude_deg as f64,
+        longitude_deg: site.longitude_deg as f64,
+        utc_offset_hours: site.utc_offset_hours as f64,
+    };
+    let [a, b] = r.hours;
+    let minutes = ((b - a) * 60.0).round().max(0.0) as usize;
+    let up: Vec<f32> = (0..=minutes)
+        .map(|m| a + m as f32 / 60.0)
+        .filter(|&h| {
+            place.position(year, month, day, h as f64).elevation_deg
+                >= r.min_sun_elevation_deg as f64
+        })
+        .collect();
+    match (up.first(), up.last()) {
+        (Some(&lo), Some(&hi)) => [lo, hi],
+        _ => r.hours,
     }
 }
 
@@ -242,17 +282,23 @@ impl ClipParams {
         }
         p.month = month;
         p.day = left;
-        p.hours = u(&mut g, r.hours) as f64;
+        let [h0, h1] = daylight(scene, year, month, left, r);
+        p.hours = g.range(h0, h1) as f64;
+        let skewed =
+            |g: &mut Rng, [a, b]: [f32; 2]| a + (b - a) * g.range(0.0, 1.0).powf(r.water_skew);
         p.water = WaterParams {
-            chlorophyll: u(&mut g, r.chlorophyll),
-            sediment: u(&mut g, r.sediment),
-            small_particles: u(&mut g, r.small_particles),
-            large_particles: u(&mut g, r.large_particles),
+            chlorophyll: skewed(&mut g, r.chlorophyll),
+            sediment: skewed(&mut g, r.sediment),
+            small_particles: skewed(&mut g, r.small_particles),
+            large_particles: skewed(&mut g, r.large_particles),
         };
         p.fish_fraction = u(&mut g, r.fish_fraction);
         let cage = scene.cage();
-        p.camera.wall = (g.next_u64() % wall_count(&cage) as u64) as usize;
-        p.camera.depth = g.range(0.5, (cage.height - 0.5).max(0.6));
+        // Wall and depth only place side cameras.
+        if kind != CameraKind::BottomFisheye {
+            p.camera.wall = (g.next_u64() % wall_count(&cage) as u64) as usize;
+            p.camera.depth = g.range(0.5, (cage.height - 0.5).max(0.6));
+        }
         let (m, d) = (r.jitter_m, r.jitter_deg);
         p.camera.jitter = Jitter {
             offset: [g.range(-m, m), g.range(-m, m), g.range(-m, m)],

@@ -62,6 +62,11 @@ pub struct RenderArgs {
     /// Simulated seconds before a clip's first frame (the school settles)
     #[arg(long, default_value_t = 10.0)]
     pub warmup: f64,
+    /// Least mean contrast (0–1 of the 8-bit range) for a visible fish to be labelled in YOLO
+    /// and COCO; fainter fish (turbid water, dusk) stay in the frame JSON only. 0 labels every
+    /// fish with a visible pixel
+    #[arg(long, default_value_t = RenderConfig::default().min_contrast)]
+    pub min_contrast: f32,
     /// Image format: jpg or png
     #[arg(long, default_value = "jpg", value_parser = parse_format)]
     pub format: ImageFormat,
@@ -158,6 +163,12 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
     if args.width < 16 || args.height < 16 || args.clip_frames == 0 {
         bail!("--width and --height must be ≥ 16 and --clip-frames ≥ 1");
     }
+    if !(0.0..=1.0).contains(&args.min_contrast) {
+        bail!(
+            "--min-contrast must be in [0, 1] (a share of the 8-bit range), got {}",
+            args.min_contrast
+        );
+    }
     let scene = load_scene(dirs, &args.scene.scene, args.scene.phase)?;
     let seed = args.scene.seed;
     let clip_frames = if args.randomize {
@@ -185,8 +196,12 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
             .map(|b| b.size_class.clone())
             .collect(),
     );
-    let config = RenderConfig::default();
+    let config = RenderConfig {
+        min_contrast: args.min_contrast,
+        ..RenderConfig::default()
+    };
     let request = json!({
+        "min_contrast": args.min_contrast,
         "scene": scene.id, "policy": args.policy, "frames": args.frames, "fps": args.fps,
         "camera": args.camera.as_str(), "width": args.width, "height": args.height,
         "randomize": args.randomize, "clip_frames": clip_frames, "warmup": args.warmup,
