@@ -124,11 +124,12 @@ fn main() {
         )
         .unwrap();
         println!(
-            "{name}: {:.1} ms/frame render+labels ({:.2} fps), mask encode {:.1} ms, {} fish labelled, {} visible, sun {:.1}°, gain {:.3e}",
+            "{name}: {:.1} ms/frame render+labels ({:.2} fps), mask encode {:.1} ms, {} fish in the frame, {} in view, {} detectable, sun {:.1}°, gain {:.3e}",
             dt * 1e3,
             1.0 / dt,
             enc * 1e3,
             frame.fish.len(),
+            frame.in_view_count(),
             frame.visible_count(),
             cond.light.sun_elevation_deg,
             frame.gain
