@@ -159,6 +159,19 @@ fn an_unknown_policy_fails_clearly() {
     ]);
     assert!(!o.status.success());
     assert!(text(&o).contains("unknown policy `genius`"), "{}", text(&o));
+    let o = deepfoids(&[
+        "simulate",
+        "--scene",
+        "seabream_default",
+        "--policy",
+        "runs/none/policy.onnx",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("policy `runs/none/policy.onnx` does not exist"),
+        "{}",
+        text(&o)
+    );
 }
 
 /// `eval` on a small scene writes every file; the CSV parses; the PNGs decode;

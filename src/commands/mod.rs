@@ -54,6 +54,9 @@ pub fn make_policy(
             !opts.stochastic,
             seed,
         ),
+        other if path.extension().is_some_and(|e| e == "onnx") || other.contains('/') => bail!(
+            "policy `{other}` does not exist (a run folder or a .onnx file was expected there)"
+        ),
         other => bail!(
             "unknown policy `{other}`; allowed: random, foids, boids, a run folder (runs/<id>) or a .onnx file"
         ),
