@@ -312,7 +312,7 @@ pub struct Light {
 }
 
 /// Fresnel reflectance of unpolarised light from air into water at incidence `theta_i` (rad).
-fn fresnel_air_water(theta_i: f32) -> f32 {
+pub(crate) fn fresnel_air_water(theta_i: f32) -> f32 {
     let st = theta_i.sin() / N_WATER;
     let ct = (1.0 - st * st).max(0.0).sqrt();
     let ci = theta_i.cos();

@@ -30,7 +30,7 @@
 
 use crate::camera::{Camera, Lens, NEAR};
 use crate::mesh::{FishMesh, tail_beat_amplitude};
-use crate::optics::{Light, N_WATER, Water};
+use crate::optics::{Light, N_WATER, Water, fresnel_air_water};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -617,7 +617,7 @@ impl Renderer {
         let cos_t = (1.0 - sin_t * sin_t).sqrt();
         let horiz = Vec3::new(v.x, 0.0, v.z).normalize_or(Vec3::X);
         let air = horiz * sin_t + Vec3::Y * cos_t;
-        let ti = 1.0 - fresnel(sin_t.asin());
+        let ti = 1.0 - fresnel_air_water(sin_t.asin());
         // A wavy surface spreads the sun into a glare lobe of ≈ 0.06 sr.
         let sigma2 = 0.02;
         let cosg = air.dot(light.sun_dir_air);
@@ -634,16 +634,6 @@ impl Renderer {
 /// A point rounded to whole millimetres.
 fn mm(p: Vec3) -> Vec3 {
     (p * 1e3).round() / 1e3
-}
-
-/// Fresnel reflectance at incidence `theta` (air side).
-fn fresnel(theta: f32) -> f32 {
-    let st = theta.sin() / N_WATER;
-    let ct = (1.0 - st * st).max(0.0).sqrt();
-    let ci = theta.cos();
-    let rs = ((ci - N_WATER * ct) / (ci + N_WATER * ct)).powi(2);
-    let rp = ((ct - N_WATER * ci) / (ct + N_WATER * ci)).powi(2);
-    0.5 * (rs + rp)
 }
 
 /// Share of a footprint `[x − f/2, x + f/2]` covered by twines of width `w`

@@ -194,17 +194,22 @@ impl Default for RandomRanges {
     }
 }
 
+/// The scene's site as the sun model takes it.
+pub fn site_place(scene: &Scene) -> SunPlace {
+    let site = &scene.site;
+    SunPlace {
+        latitude_deg: site.latitude_deg as f64,
+        longitude_deg: site.longitude_deg as f64,
+        utc_offset_hours: site.utc_offset_hours as f64,
+    }
+}
+
 /// The part of `r.hours` on a date when the sun stands at least
 /// `r.min_sun_elevation_deg` high at the scene's site, to the minute (the
 /// elevation rises and falls once a day, so it is one interval). The whole
 /// range if the sun never gets that high (polar night).
 fn daylight(scene: &Scene, year: i32, month: u32, day: u32, r: &RandomRanges) -> [f32; 2] {
-    let site = &scene.site;
-    let place = SunPlace {
-        latitude_deg: site.latitude_deg as f64,
-        longitude_deg: site.longitude_deg as f64,
-        utc_offset_hours: site.utc_offset_hours as f64,
-    };
+    let place = site_place(scene);
     let [a, b] = r.hours;
     let minutes = ((b - a) * 60.0).round().max(0.0) as usize;
     let up: Vec<f32> = (0..=minutes)
@@ -330,12 +335,7 @@ impl ClipParams {
 
     /// Light and water at local time `hours`.
     pub fn conditions(&self, scene: &Scene, hours: f64, scattering: bool) -> Conditions {
-        let site = &scene.site;
-        let place = SunPlace {
-            latitude_deg: site.latitude_deg as f64,
-            longitude_deg: site.longitude_deg as f64,
-            utc_offset_hours: site.utc_offset_hours as f64,
-        };
+        let place = site_place(scene);
         let (y, m, d) = (self.year, self.month, self.day);
         Conditions {
             light: Light::new(place, y, m, d, hours),

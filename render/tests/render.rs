@@ -427,12 +427,7 @@ fn randomized_clips_are_drawn_in_daylight() {
     let scene =
         deepfoids_env::Scene::load(&dirs, "coho_default", deepfoids_env::Phase::Pretrain).unwrap();
     let ranges = RandomRanges::default();
-    let site = &scene.site;
-    let place = SunPlace {
-        latitude_deg: site.latitude_deg as f64,
-        longitude_deg: site.longitude_deg as f64,
-        utc_offset_hours: site.utc_offset_hours as f64,
-    };
+    let place = deepfoids_render::setup::site_place(&scene);
     let (mut early_summer, mut december, mut ext) = (false, vec![], vec![]);
     for clip in 0..200 {
         let c = ClipParams::random(&scene, clip, 7, CameraKind::Side, &ranges);

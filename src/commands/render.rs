@@ -99,6 +99,15 @@ pub struct BenchRenderArgs {
     pub seed: u64,
 }
 
+/// Size class of each behaviour, by behaviour index.
+fn size_classes(scene: &Scene) -> Vec<String> {
+    scene
+        .behaviours
+        .iter()
+        .map(|b| b.size_class.clone())
+        .collect()
+}
+
 fn parse_camera(s: &str) -> Result<CameraKind, String> {
     s.parse()
 }
@@ -190,11 +199,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         &args.out,
         args.format,
         scene.species_names(),
-        scene
-            .behaviours
-            .iter()
-            .map(|b| b.size_class.clone())
-            .collect(),
+        size_classes(&scene),
     );
     let config = RenderConfig {
         min_contrast: args.min_contrast,
@@ -340,11 +345,7 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
         &tmp,
         ImageFormat::Jpg,
         scene.species_names(),
-        scene
-            .behaviours
-            .iter()
-            .map(|b| b.size_class.clone())
-            .collect(),
+        size_classes(&scene),
     );
     let behaviour_of = sim.env.world().behaviour.clone();
     let per_frame = ticks(0.2, &sim.env).max(1);
