@@ -21,6 +21,18 @@ fn observations(n: usize, seed: u64) -> (Vec<f32>, Vec<f32>) {
     (grids, vectors)
 }
 
+/// `n` observations from `seed` as flat buffers and as the actor's tensors.
+fn observation_tensors(
+    n: usize,
+    seed: u64,
+    dev: &Device,
+) -> (Vec<f32>, Vec<f32>, Tensor<4>, Tensor<2>) {
+    let (grids, vectors) = observations(n, seed);
+    let g = Tensor::<4>::from_data(TensorData::new(grids.clone(), [n, 18, 20, 34]), dev);
+    let v = Tensor::<2>::from_data(TensorData::new(vectors.clone(), [n, VECTOR_OBS]), dev);
+    (grids, vectors, g, v)
+}
+
 /// Scale a head's weights so that the largest `|μ|` over a batch, now
 /// `biggest`, becomes 0.8: the body's initial features differ between draws
 /// (tests seeding the shared device run in parallel) and small ones made the
@@ -55,9 +67,7 @@ fn tract_matches_the_burn_actor() {
         // Give the mean head real weight (it starts near zero) so the test exercises it.
         model.actor_mean.weight = uniform(0.5, &dev);
         let n = 64;
-        let (grids, vectors) = observations(n, 3);
-        let g = Tensor::<4>::from_data(TensorData::new(grids.clone(), [n, 18, 20, 34]), &dev);
-        let v = Tensor::<2>::from_data(TensorData::new(vectors.clone(), [n, VECTOR_OBS]), &dev);
+        let (grids, vectors, g, v) = observation_tensors(n, 3, &dev);
         let biggest = largest(model.actor(g.clone(), v.clone()).0);
         rescale(&mut model.actor_mean.weight, biggest);
         let meta = Metadata {
@@ -153,9 +163,7 @@ fn tract_matches_the_sac_actor() {
     actor.mean.weight = uniform(0.5, &dev);
     actor.log_std.weight = uniform(0.5, &dev);
     let n = 32;
-    let (grids, vectors) = observations(n, 5);
-    let g = Tensor::<4>::from_data(TensorData::new(grids.clone(), [n, 18, 20, 34]), &dev);
-    let v = Tensor::<2>::from_data(TensorData::new(vectors.clone(), [n, VECTOR_OBS]), &dev);
+    let (grids, vectors, g, v) = observation_tensors(n, 5, &dev);
     let biggest = largest(actor.forward(g.clone(), v.clone()).0);
     rescale(&mut actor.mean.weight, biggest);
     let meta = Metadata {

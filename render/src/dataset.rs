@@ -274,12 +274,12 @@ impl Dataset {
             }));
             for f in v["fish"].as_array().into_iter().flatten() {
                 let l = &f["label"];
-                let Some(bx) = l["box_visible"].as_array() else {
+                // Detectable fish have visible pixels, hence a visible box.
+                let (Some(true), Some(bx)) =
+                    (l["detectable"].as_bool(), l["box_visible"].as_array())
+                else {
                     continue;
                 };
-                if l["detectable"] != Value::Bool(true) {
-                    continue;
-                }
                 let b: Vec<f64> = bx.iter().filter_map(|x| x.as_f64()).collect();
                 let full: Vec<f64> = l["box_full"]
                     .as_array()

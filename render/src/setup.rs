@@ -212,15 +212,15 @@ fn daylight(scene: &Scene, year: i32, month: u32, day: u32, r: &RandomRanges) ->
     let place = site_place(scene);
     let [a, b] = r.hours;
     let minutes = ((b - a) * 60.0).round().max(0.0) as usize;
-    let up: Vec<f32> = (0..=minutes)
-        .map(|m| a + m as f32 / 60.0)
-        .filter(|&h| {
-            place.position(year, month, day, h as f64).elevation_deg
-                >= r.min_sun_elevation_deg as f64
-        })
-        .collect();
-    match (up.first(), up.last()) {
-        (Some(&lo), Some(&hi)) => [lo, hi],
+    let hour = |m: usize| a + m as f32 / 60.0;
+    let up = |m: &usize| {
+        place
+            .position(year, month, day, hour(*m) as f64)
+            .elevation_deg
+            >= r.min_sun_elevation_deg as f64
+    };
+    match ((0..=minutes).find(up), (0..=minutes).rev().find(up)) {
+        (Some(lo), Some(hi)) => [hour(lo), hour(hi)],
         _ => r.hours,
     }
 }

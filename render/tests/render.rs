@@ -45,6 +45,18 @@ fn conditions(hours: f64) -> Conditions {
     }
 }
 
+/// A pinhole 2 m down at z = 2.8, looking along −z (up is +y).
+fn side_camera(fov_deg: f32, width: u32, height: u32) -> Camera {
+    Camera::pinhole(
+        Vec3::new(0.0, -2.0, 2.8),
+        -Vec3::Z,
+        Vec3::Y,
+        fov_deg,
+        width,
+        height,
+    )
+}
+
 fn fish_at(position: Vec3, heading: Vec3, bl: f32) -> FishPose {
     FishPose {
         position,
@@ -85,7 +97,7 @@ fn assert_box_close(label: [u32; 4], analytic: [f32; 4]) {
 #[test]
 fn single_fish_box_matches_the_projected_mesh_pinhole() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 640, 360);
+    let cam = side_camera(90.0, 640, 360);
     let f = fish_at(
         Vec3::new(0.3, -1.9, 0.8),
         Vec3::new(1.0, 0.1, 0.4).normalize(),
@@ -144,7 +156,7 @@ fn single_fish_box_matches_the_projected_mesh_fisheye() {
 #[test]
 fn two_fish_in_line_occlude() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 480, 320);
+    let cam = side_camera(90.0, 480, 320);
     let near = fish_at(Vec3::new(0.0, -2.0, 1.8), Vec3::X, 0.5);
     let far = fish_at(Vec3::new(0.1, -2.07, 0.3), Vec3::X, 0.5);
     let frame = r.render(&[near, far], &cam, &conditions(11.5));
@@ -182,7 +194,7 @@ fn two_fish_in_line_occlude() {
 #[test]
 fn fish_at_the_border_is_truncated() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 240);
+    let cam = side_camera(90.0, 320, 240);
     // At 1.5 m the image's right edge is at x = 1.5 m.
     let f = fish_at(Vec3::new(1.5, -2.0, 1.3), Vec3::X, 0.5);
     let frame = r.render(&[f], &cam, &conditions(11.5));
@@ -197,7 +209,7 @@ fn fish_at_the_border_is_truncated() {
 #[test]
 fn fish_through_the_near_plane_is_clipped() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 240);
+    let cam = side_camera(90.0, 320, 240);
     let f = fish_at(Vec3::new(0.0, -2.1, 2.7), Vec3::Z, 0.5);
     let frame = r.render(&[f], &cam, &conditions(11.5));
     assert!(frame.fish[0].truncated);
@@ -214,7 +226,7 @@ fn fish_through_the_near_plane_is_clipped() {
 #[test]
 fn silhouette_has_no_holes() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 60.0, 400, 300);
+    let cam = side_camera(60.0, 400, 300);
     for heading in [
         Vec3::X,
         Vec3::Z,
@@ -242,7 +254,7 @@ fn silhouette_has_no_holes() {
 #[test]
 fn night_is_black() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 160, 90);
+    let cam = side_camera(90.0, 160, 90);
     let f = fish_at(Vec3::new(0.0, -2.0, 1.0), Vec3::X, 0.5);
     let frame = r.render(&[f], &cam, &conditions(23.0));
     assert!(frame.rgb.iter().all(|&v| v == 0));
@@ -261,7 +273,7 @@ fn night_is_black() {
 #[test]
 fn turbid_water_lowers_contrast() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 180);
+    let cam = side_camera(90.0, 320, 180);
     let f = fish_at(Vec3::new(0.0, -2.0, 0.0), Vec3::X, 0.5);
     let contrast = |sediment: f32| {
         let mut c = conditions(11.5);
@@ -321,7 +333,7 @@ fn rle_counts_by_hand() {
 #[test]
 fn yolo_labels_are_normalised() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 240);
+    let cam = side_camera(90.0, 320, 240);
     let fish = [
         fish_at(Vec3::new(1.5, -2.0, 1.3), Vec3::X, 0.5),
         fish_at(Vec3::new(-0.3, -1.6, 1.0), Vec3::Z, 0.4),
@@ -346,7 +358,7 @@ fn yolo_labels_are_normalised() {
 #[test]
 fn contrast_is_measured_against_the_frame_without_the_fish() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 180);
+    let cam = side_camera(90.0, 320, 180);
     let f = fish_at(
         Vec3::new(0.2, -2.1, 1.5),
         Vec3::new(1.0, 0.0, 0.3).normalize(),
@@ -386,7 +398,7 @@ fn contrast_is_measured_against_the_frame_without_the_fish() {
 #[test]
 fn faint_fish_in_turbid_water_are_not_labelled() {
     let r = renderer();
-    let cam = Camera::pinhole(Vec3::new(0.0, -2.0, 2.8), -Vec3::Z, Vec3::Y, 90.0, 320, 180);
+    let cam = side_camera(90.0, 320, 180);
     let mut cond = conditions(11.5);
     cond.water = Water::new(
         WaterParams {
