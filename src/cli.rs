@@ -44,6 +44,8 @@ pub enum Command {
     Compare(CompareArgs),
     /// Render a labelled image dataset (YOLO, COCO, masks) of a scene driven by a policy
     Render(commands::render::RenderArgs),
+    /// Watch a school: one self-contained HTML replay (3D, scrub, follow a fish, P/M), and GIF clips
+    Replay(commands::replay::ReplayArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -119,6 +121,12 @@ pub struct EvalArgs {
     /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Also write replay.html (see `deepfoids replay`) next to the plots
+    #[arg(long)]
+    pub replay: bool,
+    /// Frames per simulated second stored in replay.html (the viewer interpolates between them)
+    #[arg(long, default_value_t = 5.0, value_name = "FPS")]
+    pub replay_fps: f64,
 }
 
 /// The training algorithm.
@@ -346,6 +354,7 @@ pub fn run() -> Result<()> {
             what: BenchCommand::Policy(a),
         }) => commands::bench::policy(&a),
         Some(Command::Render(a)) => commands::render::run(&dirs, &a),
+        Some(Command::Replay(a)) => commands::replay::run(&dirs, &a),
         Some(Command::Bench {
             what: BenchCommand::Render(a),
         }) => commands::render::bench(&dirs, &a),

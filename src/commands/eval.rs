@@ -2,9 +2,10 @@
 
 use super::{load_scene, make_policy};
 use crate::cli::EvalArgs;
-use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
+use crate::report::{EvalMeta, RunArgs, evaluate, print_table, write_outputs};
 use anyhow::{Result, bail};
 use deepfoids_env::{ConfigDirs, Env};
+use deepfoids_replay::EnvRecorder;
 use std::path::PathBuf;
 
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
@@ -23,7 +24,17 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
             sa.seed
         ))
     });
-    let eval = evaluate(&mut env, policy.as_mut(), args.seconds, |_, _| {})?;
+    let mut recorder = if args.replay {
+        let info = super::replay::info(&env, &policy.name(), "simulated by deepfoids eval", vec![]);
+        Some(EnvRecorder::new(&env, info, args.replay_fps)?)
+    } else {
+        None
+    };
+    let eval = evaluate(&mut env, policy.as_mut(), args.seconds, |env, _, _| {
+        if let Some(r) = recorder.as_mut() {
+            r.observe(env)
+        }
+    })?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
@@ -31,10 +42,11 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         policy: &name,
         seed: sa.seed,
         phase: sa.phase.as_str(),
-        deterministic: true,
+        deterministic: !args.policy_args.stochastic,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
+        rerun: RunArgs::new(sa, &args.policy, &args.policy_args, args.seconds),
     };
     let summary = write_outputs(&out, &env, &eval, &meta)?;
     print_table(&meta, &summary);
@@ -42,5 +54,11 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         "wrote {}/{{metrics.csv, summary.json, pm.png, depth.png, trajectories.png}}",
         out.display()
     );
+    if let Some(r) = recorder {
+        let rec = r.finish(super::replay::curves(&eval));
+        let path = out.join("replay.html");
+        let size = super::replay::write_page(&path, &rec)?;
+        println!("{}", super::replay::describe(&path, &rec, &size));
+    }
     Ok(())
 }

@@ -6,6 +6,7 @@ pub mod eval;
 pub mod export;
 pub mod pipeline;
 pub mod render;
+pub mod replay;
 pub mod scenes;
 pub mod sensor_view;
 pub mod simulate;

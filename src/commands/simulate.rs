@@ -1,9 +1,11 @@
 //! `deepfoids simulate`: run a scene with a policy, write `trajectories.csv`
-//! (one row per fish per decision of the fastest species) and print a summary.
+//! (one row per fish per decision of the fastest species) and `simulate.json`
+//! (the options that made it, for `replay --from`), and print a summary.
 
 use super::{load_scene, make_policy};
 use crate::cli::SimulateArgs;
-use crate::io::AtomicFile;
+use crate::io::{AtomicFile, write_atomic};
+use crate::report::RunArgs;
 use anyhow::{Context, Result, bail};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, StepOutput, TERM_NAMES};
@@ -116,6 +118,12 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     let wall = start.elapsed().as_secs_f64();
     csv.commit()
         .with_context(|| format!("writing {}", csv_path.display()))?;
+    // What `replay --from` needs to put the CSV back into its cage.
+    let rerun = RunArgs::new(sa, &args.policy, &args.policy_args, args.seconds);
+    write_atomic(
+        out_dir.join("simulate.json"),
+        serde_json::to_string_pretty(&rerun)?.as_bytes(),
+    )?;
 
     let s = env.scene();
     let fish = env.world().len();
