@@ -111,24 +111,39 @@ const STATE_NAMES = ['swarm', 'polarised', 'milling', 'transitional'];
 const STATE_COLOURS = ['#b0b7bf', '#7fb2e5', '#f19c99', '#f3d37a'];
 
 function fishGeometry(THREE) {
-  // A laterally compressed spindle one body length long (+z = head), and a tail fin.
+  // A laterally compressed spindle one body length long (+z = head), and a
+  // two-sided tail fin: 98 triangles on 66 shared vertices, so 1,000 fish stay
+  // cheap even on a software renderer.
   const profile = [
-    [0.0, -0.4], [0.03, -0.37], [0.055, -0.28], [0.085, -0.14], [0.1, 0.0],
-    [0.102, 0.12], [0.09, 0.26], [0.062, 0.39], [0.03, 0.47], [0.0, 0.5],
+    [0.0, -0.4], [0.045, -0.3], [0.088, -0.12], [0.102, 0.06], [0.085, 0.28], [0.045, 0.43], [0.0, 0.5],
   ].map(([r, y]) => new THREE.Vector2(r, y));
-  const body = new THREE.LatheGeometry(profile, 10);
+  const body = new THREE.LatheGeometry(profile, 8);
   body.rotateX(Math.PI / 2); // lathe axis y → z, head towards +z
   body.scale(0.6, 1.0, 1.0); // narrower than deep
-  const b = body.toNonIndexed();
-  const bodyPos = b.getAttribute('position').array;
-  const fin = [0, 0, -0.36, 0, 0.11, -0.5, 0, -0.11, -0.5];
-  const all = new Float32Array(bodyPos.length + fin.length);
-  all.set(bodyPos, 0);
-  all.set(fin, bodyPos.length);
+  const pos = Array.from(body.getAttribute('position').array);
+  const index = Array.from(body.getIndex().array);
+  const v = pos.length / 3;
+  pos.push(0, 0, -0.36, 0, 0.11, -0.5, 0, -0.11, -0.5);
+  index.push(v, v + 1, v + 2, v, v + 2, v + 1);
   const g = new THREE.BufferGeometry();
-  g.setAttribute('position', new THREE.BufferAttribute(all, 3));
+  g.setAttribute('position', new THREE.Float32BufferAttribute(pos, 3));
+  g.setIndex(index);
   g.computeVertexNormals();
   return g;
+}
+
+/** Whether WebGL runs on a software rasteriser (SwiftShader, llvmpipe): there
+ * multisampling costs 2–3× the frame time, so it is left off. */
+function softwareGL() {
+  try {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    const ext = gl && gl.getExtension('WEBGL_debug_renderer_info');
+    const name = ext ? String(gl.getParameter(ext.UNMASKED_RENDERER_WEBGL)) : '';
+    gl?.getExtension('WEBGL_lose_context')?.loseContext();
+    return /swiftshader|llvmpipe|software/i.test(name);
+  } catch {
+    return false;
+  }
 }
 
 function buildCage(THREE, meta) {
@@ -261,19 +276,21 @@ async function main() {
   const nDominant = s.dominant.reduce((a, d) => a + d, 0);
   const extra = document.createElement('div');
   extra.innerHTML = `<div class="row"><span class="dot"></span>dominant fish (${nDominant})</div>` +
-    (meta.has_chases ? '<div class="row"><span class="line"></span>chase, aggressor → target</div>' : '<div class="row hint">chases not recorded</div>') +
+    (meta.has_chases ? '<div class="row"><span class="line"></span>chase: both fish red, joined by a line</div>' : '<div class="row hint">chases not recorded</div>') +
     '<div class="hint">click a fish to follow it</div>';
   legend.append(extra);
 
   // Renderer, scene, camera.
   const canvas = $('view');
-  const renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
+  const software = softwareGL();
+  const renderer = new THREE.WebGLRenderer({ canvas, antialias: !software });
+  api.softwareGL = software;
   renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
   const scene = new THREE.Scene();
   scene.background = new THREE.Color(0x0b2236);
   scene.fog = new THREE.Fog(0x0b2236, radius * 2.5, radius * 7);
-  scene.add(new THREE.HemisphereLight(0xcfe8ff, 0x1a2a33, 1.6));
-  const sun = new THREE.DirectionalLight(0xffffff, 1.4);
+  scene.add(new THREE.HemisphereLight(0xdcefff, 0x2a3a44, 2.4));
+  const sun = new THREE.DirectionalLight(0xffffff, 2.0);
   sun.position.set(0.3, 1, 0.2);
   scene.add(sun);
   scene.add(buildCage(THREE, meta));
@@ -285,7 +302,7 @@ async function main() {
 
   // Fish: one instanced mesh, per-instance colour by behaviour.
   const geometry = fishGeometry(THREE);
-  const material = new THREE.MeshLambertMaterial({ side: THREE.DoubleSide });
+  const material = new THREE.MeshLambertMaterial();
   const fish = new THREE.InstancedMesh(geometry, material, N);
   fish.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
   fish.frustumCulled = false; // instances move; the mesh's bounds are recomputed only for picking
@@ -312,6 +329,8 @@ async function main() {
   const chaseGeom = new THREE.BufferGeometry();
   const chasePos = new Float32Array(Math.max(1, maxPairs) * 6);
   chaseGeom.setAttribute('position', new THREE.BufferAttribute(chasePos, 3).setUsage(THREE.DynamicDrawUsage));
+  const chaseColour = new THREE.Color(0xff3b30);
+  let tinted = new Set();
   const chaseLines = new THREE.LineSegments(chaseGeom, new THREE.LineBasicMaterial({ color: 0xff3b30, depthTest: false, transparent: true }));
   chaseLines.frustumCulled = false;
   chaseLines.renderOrder = 3;
@@ -383,13 +402,26 @@ async function main() {
     dotGeom.attributes.position.needsUpdate = true;
     const near = a < 0.5 ? f : g;
     const c0 = s.chase_start[near], c1 = s.chase_start[near + 1];
+    const chasing = new Set();
     for (let k = c0; k < c1; k++) {
       const ag = s.chase_pairs[2 * k], tg = s.chase_pairs[2 * k + 1];
       const o = 6 * (k - c0);
       chasePos.set([P[3 * ag], P[3 * ag + 1], P[3 * ag + 2], P[3 * tg], P[3 * tg + 1], P[3 * tg + 2]], o);
+      chasing.add(ag);
+      chasing.add(tg);
     }
     chaseGeom.setDrawRange(0, 2 * (c1 - c0));
     chaseGeom.attributes.position.needsUpdate = true;
+    // Fish in a chase turn red; the others keep their behaviour's colour.
+    let recoloured = false;
+    for (const i of tinted) {
+      if (!chasing.has(i)) { fish.setColorAt(i, behaviourColours[s.behaviour[i]]); recoloured = true; }
+    }
+    for (const i of chasing) {
+      if (!tinted.has(i)) { fish.setColorAt(i, chaseColour); recoloured = true; }
+    }
+    tinted = chasing;
+    if (recoloured) fish.instanceColor.needsUpdate = true;
     return { f, near };
   }
   const matrixArray = fish.instanceMatrix.array;
@@ -614,6 +646,12 @@ async function main() {
   api.setView = setView;
   api.select = (i) => selectFish(i === null ? null : Math.max(0, Math.min(N - 1, i | 0)));
   api.fishPosition = (i) => [P[3 * i], P[3 * i + 1], P[3 * i + 2]];
+  // Where fish i is drawn, in page pixels (for clicking it from a test).
+  api.screenOf = (i) => {
+    const v = new THREE.Vector3(P[3 * i], P[3 * i + 1], P[3 * i + 2]).project(camera);
+    const r = canvas.getBoundingClientRect();
+    return [r.left + ((v.x + 1) / 2) * r.width, r.top + ((1 - v.y) / 2) * r.height];
+  };
   api.duration = t1 - t0;
   api.frames = F;
   api.fish = N;
