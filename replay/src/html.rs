@@ -184,6 +184,150 @@ fn escape_html(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::recording::tests::env;
+    use crate::recording::{EnvRecorder, Recording};
+    use base64::Engine;
+    use deepfoids_env::policy::action_buffers;
+    use deepfoids_env::{Policy, RandomPolicy};
+    use std::io::Read;
+
+    /// The text of `<script … id="{id}">…</script>`.
+    fn block<'a>(html: &'a str, id: &str) -> &'a str {
+        let start = html.find(&format!("id=\"{id}\">")).unwrap() + id.len() + 6;
+        let len = html[start..].find("</script>").unwrap();
+        &html[start..start + len]
+    }
+
+    fn gunzip_base64(b64: &str) -> Vec<u8> {
+        let zipped = base64::engine::general_purpose::STANDARD
+            .decode(b64)
+            .unwrap();
+        let mut out = vec![];
+        flate2::read::GzDecoder::new(&zipped[..])
+            .read_to_end(&mut out)
+            .unwrap();
+        out
+    }
+
+    fn recording() -> Recording {
+        let mut env = env("seabream_50", 3);
+        let mut policy = RandomPolicy { seed: 3 };
+        let mut actions = action_buffers(&env);
+        let info = Info {
+            title: "seabream_50 · random <&> seed 3".into(),
+            scene: "seabream_50".into(),
+            description: "</script><!-- a scene".into(),
+            policy: "random".into(),
+            seed: 3,
+            phase: "pretrain".into(),
+            source: "test".into(),
+            notes: vec![],
+        };
+        let mut rec = EnvRecorder::new(&env, info, 5.0).unwrap();
+        for _ in 0..30 {
+            policy.act(&env, &mut actions).unwrap();
+            env.step(&actions).unwrap();
+            rec.observe(&env);
+        }
+        rec.finish([(0.0, 0.2, 0.7), (0.1, 0.3, 0.6)])
+    }
+
+    /// Decode the page as viewer.js does (header, gunzip, byte planes,
+    /// position sums, term-major terms) and get the recording back bit for
+    /// bit; the library blocks are the vendored files; nothing is fetched.
+    #[test]
+    fn the_page_carries_the_recording_and_three_js() {
+        let rec = recording();
+        let (html, size) = page(&rec);
+        assert_eq!(size.total, html.len());
+        assert!(!html.contains("http://") && !html.contains("https://"));
+        assert!(!html.contains(" src=") && !html.contains(" href="));
+        assert!(html.contains("<title>seabream_50 · random &lt;&amp;&gt; seed 3</title>"));
+        assert_eq!(
+            gunzip_base64(block(&html, "lib-three-core")),
+            THREE_CORE.as_bytes()
+        );
+        assert_eq!(
+            gunzip_base64(block(&html, "lib-three-module")),
+            THREE_MODULE.as_bytes()
+        );
+        assert_eq!(
+            gunzip_base64(block(&html, "lib-orbit-controls")),
+            ORBIT_CONTROLS.as_bytes()
+        );
+
+        let meta: serde_json::Value = serde_json::from_str(block(&html, "replay-meta")).unwrap();
+        assert_eq!(meta["format"], 1);
+        assert_eq!(meta["info"]["description"], "</script><!-- a scene");
+        assert_eq!(meta["fish"], 50);
+        assert_eq!(meta["frames"], 16);
+        assert_eq!(meta["has_chases"], true);
+        assert_eq!(meta["cage"]["outline"].as_array().unwrap().len(), 4);
+        let packed = gunzip_base64(block(&html, "replay-data"));
+        let section = |name: &str| -> (Vec<u8>, usize) {
+            let s = meta["sections"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|s| s["name"] == name)
+                .unwrap();
+            let size = match s["type"].as_str().unwrap() {
+                "u8" => 1,
+                "u16" | "i16" => 2,
+                _ => 4,
+            };
+            let (off, n) = (
+                s["offset"].as_u64().unwrap() as usize,
+                s["length"].as_u64().unwrap() as usize,
+            );
+            assert_eq!(off % 8, 0);
+            let mut bytes = vec![0; n * size];
+            for j in 0..size {
+                for i in 0..n {
+                    bytes[i * size + j] = packed[off + j * n + i];
+                }
+            }
+            (bytes, n)
+        };
+        let u16s = |name: &str| -> Vec<u16> {
+            let (b, _) = section(name);
+            b.chunks_exact(2)
+                .map(|c| u16::from_le_bytes([c[0], c[1]]))
+                .collect()
+        };
+        let mut pos = u16s("position_delta");
+        for k in 3 * rec.fish..pos.len() {
+            pos[k] = pos[k].wrapping_add(pos[k - 3 * rec.fish]);
+        }
+        assert_eq!(pos, rec.position);
+        assert_eq!(u16s("yaw"), rec.yaw);
+        assert_eq!(u16s("speed"), rec.speed);
+        let terms = u16s("terms");
+        let (f, n) = (rec.frames(), rec.fish);
+        for k in 0..f * n {
+            for t in 0..deepfoids_env::N_TERMS {
+                assert_eq!(
+                    terms[(t * f + k / n) * n + k % n],
+                    rec.terms[k * deepfoids_env::N_TERMS + t]
+                );
+            }
+        }
+        assert_eq!(section("flags").0, rec.flags);
+        let (bl, _) = section("bl");
+        let bl: Vec<f32> = bl
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        assert_eq!(bl, rec.bl);
+        assert_eq!(section("curve_state").0, rec.curves.state);
+        let (pairs, n_pairs) = section("chase_pairs");
+        assert_eq!(n_pairs, 2 * rec.chase_pairs.len());
+        assert!(n_pairs > 0);
+        assert_eq!(
+            u32::from_le_bytes(pairs[..4].try_into().unwrap()),
+            rec.chase_pairs[0][0]
+        );
+    }
 
     #[test]
     fn fill_replaces_slots_once() {

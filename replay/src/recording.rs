@@ -533,3 +533,204 @@ impl EnvRecorder {
 pub fn school_order(position: &[Vec3], heading: &[Vec3]) -> (f32, f32) {
     order_parameters(position, heading, None)
 }
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use deepfoids_env::policy::action_buffers;
+    use deepfoids_env::{ConfigDirs, Phase, Policy, RandomPolicy, Scene};
+
+    pub(crate) fn env(scene: &str, seed: u64) -> Env {
+        let dirs = ConfigDirs::discover();
+        Env::new(Scene::load(&dirs, scene, Phase::Pretrain).unwrap(), seed)
+    }
+
+    fn info() -> Info {
+        Info {
+            title: "t".into(),
+            scene: "s".into(),
+            description: String::new(),
+            policy: "random".into(),
+            seed: 0,
+            phase: "pretrain".into(),
+            source: "test".into(),
+            notes: vec![],
+        }
+    }
+
+    /// Bounds (−1, −2, −1)…(1, 0, 1): origin (−1.5, −2.5, −1.5), 3 m across
+    /// → 1 mm steps; (0, −1, 0.25) is (1500, 1500, 1750) steps.
+    #[test]
+    fn positions_in_millimetre_steps() {
+        let q = Quant::for_bounds(Vec3::new(-1.0, -2.0, -1.0), Vec3::new(1.0, 0.0, 1.0));
+        assert_eq!(q.origin, [-1.5, -2.5, -1.5]);
+        assert_eq!(q.step, 0.001);
+        assert_eq!(q.encode(Vec3::new(0.0, -1.0, 0.25)), [1500, 1500, 1750]);
+        assert!(
+            q.decode([1500, 1500, 1750])
+                .distance(Vec3::new(0.0, -1.0, 0.25))
+                < 1e-5
+        );
+        assert_eq!(q.encode(Vec3::new(-9.0, 0.0, 0.0))[0], 0, "clamped");
+        // A 100 m cage: 101 m / 65,535 steps = 1.541 mm.
+        let big = Quant::for_bounds(Vec3::new(-50.0, -10.0, -50.0), Vec3::new(50.0, 0.0, 50.0));
+        assert!((big.step - 101.0 / 65535.0).abs() < 1e-9);
+    }
+
+    /// 4,096 yaw steps a turn from −π: facing +x (yaw π/2) is step 3,072,
+    /// +z (0) step 2,048, −z (±π) step 0; straight up is pitch step 2,047.
+    #[test]
+    fn headings_in_steps() {
+        let q = Quant::for_bounds(Vec3::splat(-1.0), Vec3::ZERO);
+        assert_eq!(q.encode_heading(Vec3::X), (3072, 0));
+        assert_eq!(q.encode_heading(Vec3::Z), (2048, 0));
+        assert_eq!(q.encode_heading(-Vec3::Z), (0, 0));
+        assert_eq!(q.encode_heading(Vec3::Y).1, 2047);
+        assert_eq!(q.encode_heading(-Vec3::Y).1, -2047);
+        assert!(q.decode_heading(3072, 0).distance(Vec3::X) < 1e-6);
+        assert!(q.decode_heading(0, 0).distance(-Vec3::Z) < 1e-6);
+        // Any heading comes back within half a yaw step plus half a pitch step.
+        let limit = (PI / 4096.0 + FRAC_PI_2 / 2047.0 / 2.0) * 1.01;
+        for k in 0..200 {
+            let a = k as f32 * 0.7;
+            let d = Vec3::new(
+                a.sin() * (a * 0.3).cos(),
+                (a * 0.3).sin(),
+                a.cos() * (a * 0.3).cos(),
+            );
+            let (y, p) = q.encode_heading(d);
+            let back = q.decode_heading(y, p);
+            assert!(back.angle_between(d) <= limit, "{d} → {back}");
+        }
+    }
+
+    /// Random actions in seabream_50 for 5 s (seed 3: fish hit the net and
+    /// chase): at every frame the recording holds the env's fish to within
+    /// its steps, the chases, the latest decision's reward terms, and a
+    /// respawn flag for every fish terminated since the previous frame.
+    #[test]
+    fn env_recorder_holds_what_the_env_did() {
+        let mut env = env("seabream_50", 3);
+        let mut policy = RandomPolicy { seed: 3 };
+        let mut actions = action_buffers(&env);
+        let mut rec = EnvRecorder::new(&env, info(), 5.0).unwrap();
+        assert_eq!(rec.stride, 2, "0.1 s ticks, 5 frames/s");
+        let n = env.world().len();
+        let mut terms = vec![[0.0f32; N_TERMS]; n];
+        let mut respawned = vec![false; n];
+        let (mut respawns, mut chases) = (0, 0);
+        let mut expected = vec![];
+        let snapshot = |env: &Env, terms: &[[f32; N_TERMS]], respawned: &[bool]| {
+            let f = &env.output().fish;
+            let pairs: Vec<[u32; 2]> = env
+                .world()
+                .chase
+                .iter()
+                .enumerate()
+                .filter_map(|(i, c)| match c {
+                    Chase::Aggressor { target, .. } => Some([i as u32, *target]),
+                    _ => None,
+                })
+                .collect();
+            (
+                env.output().time,
+                f.position.clone(),
+                f.heading.clone(),
+                f.speed.clone(),
+                pairs,
+                terms.to_vec(),
+                respawned.to_vec(),
+            )
+        };
+        expected.push(snapshot(&env, &terms, &respawned));
+        for _ in 0..50 {
+            policy.act(&env, &mut actions).unwrap();
+            env.step(&actions).unwrap();
+            rec.observe(&env);
+            for b in env.output().behaviours.iter().filter(|b| b.decided) {
+                for a in 0..b.n_agents {
+                    terms[b.first + a] = b.terms[a];
+                    respawned[b.first + a] |= b.terminated[a];
+                    respawns += b.terminated[a] as usize;
+                }
+            }
+            if env.output().tick.is_multiple_of(2) {
+                let s = snapshot(&env, &terms, &respawned);
+                chases += s.4.len();
+                expected.push(s);
+                respawned.iter_mut().for_each(|r| *r = false);
+            }
+        }
+        assert!(
+            respawns > 0 && chases > 0,
+            "the test needs respawns ({respawns}) and chases ({chases})"
+        );
+        let r = rec.finish([(0.0, 0.5, 0.25)]);
+        assert_eq!(r.frames(), 26);
+        assert_eq!(
+            r.curves.state,
+            vec![state_code(SchoolState::classify(0.5, 0.25))]
+        );
+        for (f, (t, pos, head, speed, pairs, terms, resp)) in expected.iter().enumerate() {
+            assert_eq!(r.times[f], *t as f32);
+            assert_eq!(r.chases_at(f), &pairs[..], "frame {f}");
+            for i in 0..n {
+                assert!(
+                    r.position_at(f, i).distance(pos[i]) <= 0.001 * 0.87,
+                    "frame {f} fish {i}"
+                );
+                assert!(r.heading_at(f, i).angle_between(head[i]) < 0.002);
+                assert!((r.speed_at(f, i) - speed[i]).abs() <= 0.0005);
+                let got = r.terms_at(f, i).unwrap();
+                for (g, e) in got.iter().zip(&terms[i]) {
+                    assert!(
+                        (g - e).abs() <= e.abs() * 1e-3 + 1e-4,
+                        "frame {f} fish {i}: {g} vs {e}"
+                    );
+                }
+                assert_eq!(
+                    r.flags_at(f, i) & FLAG_RESPAWNED != 0,
+                    resp[i],
+                    "frame {f} fish {i}"
+                );
+                let in_chase = pairs.iter().any(|p| p[0] as usize == i);
+                assert_eq!(r.flags_at(f, i) & FLAG_CHASING != 0, in_chase);
+            }
+        }
+    }
+
+    /// 1.0, −300 and 0.1 as half floats: 0x3C00, 0xDCB0, and 0.0999755859375.
+    #[test]
+    fn reward_terms_as_half_floats() {
+        let e = env("seabream_default", 0);
+        let mut r = Recording::new(&e, info()).unwrap();
+        let fish = (0..r.fish).map(|_| FishSample {
+            position: Vec3::new(0.0, -1.0, 0.0),
+            heading: Vec3::Z,
+            speed: 0.1,
+            flags: 0,
+        });
+        let mut terms = vec![[0.0; N_TERMS]; r.fish];
+        terms[2] = [1.0, -300.0, 0.1, 0.0, 0.0, 0.0, 0.0];
+        r.push_frame(0.0, fish, None, Some(&terms));
+        assert_eq!(
+            &r.terms[2 * N_TERMS..2 * N_TERMS + 3],
+            &[0x3C00, 0xDCB0, 0x2E66]
+        );
+        assert_eq!(
+            r.terms_at(0, 2).unwrap()[2],
+            half::f16::from_bits(0x2E66).to_f32()
+        );
+        assert!((r.terms_at(0, 2).unwrap()[2] - 0.099_975_586).abs() < 1e-9);
+        assert!(!r.has_chases);
+    }
+
+    #[test]
+    fn bad_frame_rates_are_refused() {
+        assert!(matches!(stride(0.0, 0.1), Err(ReplayError::Fps(_))));
+        assert!(matches!(stride(f64::NAN, 0.1), Err(ReplayError::Fps(_))));
+        assert_eq!(stride(5.0, 0.2).unwrap(), 1);
+        assert_eq!(stride(2.0, 0.1).unwrap(), 5);
+        assert_eq!(stride(100.0, 0.1).unwrap(), 1, "never faster than a tick");
+    }
+}

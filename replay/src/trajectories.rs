@@ -238,3 +238,153 @@ fn parse_row(line: &str) -> Result<Row, String> {
         speed: f(9)?,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recording::tests::env;
+    use deepfoids_env::policy::action_buffers;
+    use deepfoids_env::{Policy, RandomPolicy};
+
+    fn info() -> Info {
+        Info {
+            title: "t".into(),
+            scene: "seabream_50".into(),
+            description: String::new(),
+            policy: "random".into(),
+            seed: 3,
+            phase: "pretrain".into(),
+            source: "csv".into(),
+            notes: vec![],
+        }
+    }
+
+    /// 2 s of random actions written as `simulate` writes them (every 0.1 s
+    /// tick), and the positions at every tick.
+    fn csv(seconds: u64) -> (String, Vec<Vec<Vec3>>) {
+        let mut env = env("seabream_50", 3);
+        let mut policy = RandomPolicy { seed: 3 };
+        let mut actions = action_buffers(&env);
+        let names: Vec<String> = env.behaviours().iter().map(|b| b.name.clone()).collect();
+        let mut text = format!("{HEADER}\n");
+        let mut positions = vec![];
+        let mut write = |env: &Env, text: &mut String| {
+            let f = &env.output().fish;
+            for i in 0..f.position.len() {
+                let (p, d) = (f.position[i], f.heading[i]);
+                text.push_str(&format!(
+                    "{:.3},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
+                    env.output().time,
+                    i,
+                    names[f.behaviour[i] as usize],
+                    p.x,
+                    p.y,
+                    p.z,
+                    d.x,
+                    d.y,
+                    d.z,
+                    f.speed[i],
+                    f.bl[i]
+                ));
+            }
+            positions.push(f.position.clone());
+        };
+        write(&env, &mut text);
+        for _ in 0..seconds * 10 {
+            policy.act(&env, &mut actions).unwrap();
+            env.step(&actions).unwrap();
+            write(&env, &mut text);
+        }
+        (text, positions)
+    }
+
+    /// Rows every 0.1 s at 5 frames/s: every second snapshot is a frame
+    /// (t = 0, 0.2, … 2.0), each fish within a millimetre (the CSV's 0.1 mm
+    /// plus the recording's 1 mm steps); P and M at every snapshot.
+    #[test]
+    fn reads_what_simulate_writes() {
+        let (text, positions) = csv(2);
+        let e = env("seabream_50", 3);
+        let r = from_trajectories("trajectories.csv", &text, &e, info(), 5.0).unwrap();
+        assert_eq!(r.frames(), 11);
+        assert_eq!(r.curves.t.len(), 21);
+        assert!((r.times[3] - 0.6).abs() < 1e-6);
+        for f in 0..r.frames() {
+            for (i, p) in positions[2 * f].iter().enumerate() {
+                let d = r.position_at(f, i).distance(*p);
+                assert!(d < 0.001, "frame {f} fish {i}: {d} m off");
+            }
+        }
+        let (p, m) = crate::recording::school_order(&positions[4], &{
+            // Headings as printed; P and M of snapshot 4 from the CSV's own numbers.
+            text.lines()
+                .skip(1 + 4 * 50)
+                .take(50)
+                .map(|l| {
+                    let c: Vec<f32> = l
+                        .split(',')
+                        .skip(6)
+                        .take(3)
+                        .map(|x| x.parse().unwrap())
+                        .collect();
+                    Vec3::new(c[0], c[1], c[2]).normalize()
+                })
+                .collect::<Vec<_>>()
+        });
+        assert!((r.curves.p[4] - p).abs() < 1e-3 && (r.curves.m[4] - m).abs() < 1e-3);
+        assert!(r.terms.is_empty() && !r.has_chases);
+    }
+
+    /// Another seed draws other body lengths: the CSV is refused, naming the fish.
+    #[test]
+    fn refuses_a_csv_of_another_seed() {
+        let (text, _) = csv(1);
+        let other = env("seabream_50", 4);
+        let err = from_trajectories("runs/x/trajectories.csv", &text, &other, info(), 5.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("runs/x/trajectories.csv: line 2: fish 0 is"),
+            "{err}"
+        );
+        assert!(err.contains("another scene or seed"), "{err}");
+    }
+
+    #[test]
+    fn refuses_broken_files_naming_the_line() {
+        let (text, _) = csv(1);
+        let e = env("seabream_50", 3);
+        let read = |t: &str| {
+            from_trajectories("t.csv", t, &e, info(), 5.0)
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            read("t,fish\n"),
+            "t.csv: line 1: header is `t,fish`, expected `t,fish,behaviour,x,y,z,dx,dy,dz,speed,bl`"
+        );
+        // Cut in the middle of the third snapshot (lines 102–151).
+        let cut: String = text
+            .lines()
+            .take(1 + 2 * 50 + 3)
+            .map(|l| format!("{l}\n"))
+            .collect();
+        assert_eq!(
+            read(&cut),
+            "t.csv: line 102: the last snapshot (t = 0.2) lists 3 of 50 fish"
+        );
+        let swapped = text.replacen("\n0.000,1,", "\n0.000,7,", 1);
+        assert_eq!(
+            read(&swapped),
+            "t.csv: line 3: fish 7 where fish 1 was expected (each snapshot lists fish 0…49 in order)"
+        );
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        let mut cols: Vec<&str> = lines[5].split(',').collect();
+        cols[7] = "0.9";
+        lines[5] = cols.join(",");
+        assert!(
+            read(&lines.join("\n")).starts_with("t.csv: line 6: heading ("),
+            "not a unit vector"
+        );
+    }
+}
