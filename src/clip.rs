@@ -37,6 +37,7 @@ const SURFACE: [u8; 3] = [143, 211, 255];
 const TEXT: [u8; 3] = [230, 238, 245];
 const CHASE: [u8; 3] = [255, 59, 48];
 const DOMINANT: [u8; 3] = [255, 255, 255];
+const OBSTACLE: [u8; 3] = [138, 122, 102];
 /// Shades of each behaviour colour, from itself towards the water.
 const SHADES: usize = 3;
 /// Palette index left transparent in delta frames.
@@ -65,7 +66,10 @@ const OUTLINE: [(f32, f32); 12] = [
 /// The fixed palette: water, lines, text, behaviour shades, then a colour cube
 /// for anti-aliased text; the last entry is the transparent one.
 fn palette() -> Vec<[u8; 3]> {
-    let mut p = vec![WATER, NET, SURFACE, TEXT, CHASE, DOMINANT, [40, 60, 80]];
+    let mut p = vec![WATER, NET, SURFACE, TEXT, CHASE, DOMINANT, OBSTACLE];
+    for s in 0..SHADES {
+        p.push(shade(CHASE, s as f32 / SHADES as f32 * 0.75));
+    }
     for c in COLOURS {
         for s in 0..SHADES {
             p.push(shade(c, s as f32 / SHADES as f32 * 0.75));
@@ -427,7 +431,9 @@ fn draw_frame(
         ))
         .map_err(pe)?;
 
-        // Fish, far ones first.
+        // Fish in a chase are red (as in the viewer); far fish first.
+        let chasing: std::collections::HashSet<u32> =
+            rec.chases_at(f).iter().flatten().copied().collect();
         let mut order: Vec<(f32, usize)> = (0..rec.fish)
             .map(|i| (panel.far(rec.position_at(f, i), height, half_z), i))
             .collect();
@@ -453,10 +459,12 @@ fn draw_frame(
                 })
                 .collect();
             let shade_step = ((far * SHADES as f32) as usize).min(SHADES - 1);
-            let col = shade(
-                colour(rec.behaviour[i] as usize),
-                shade_step as f32 / SHADES as f32 * 0.75,
-            );
+            let base = if chasing.contains(&(i as u32)) {
+                CHASE
+            } else {
+                colour(rec.behaviour[i] as usize)
+            };
+            let col = shade(base, shade_step as f32 / SHADES as f32 * 0.75);
             root.draw(&Polygon::new(pts, rgb(col).filled()))
                 .map_err(pe)?;
             if rec.dominant[i] {
@@ -485,7 +493,7 @@ fn draw_obstacle<DB: DrawingBackend>(
     o: &deepfoids_replay::recording::ObstacleShape,
 ) -> Result<()> {
     use deepfoids_replay::recording::ObstacleShape as O;
-    let fill = RGBColor(138, 122, 102).filled();
+    let fill = rgb(OBSTACLE).filled();
     let r_px = |r: f32| (r * panel.scale).round() as i32;
     match *o {
         O::Sphere { center, radius } => {
@@ -522,7 +530,7 @@ mod tests {
         let pal = palette();
         assert_eq!(pal.len(), 256);
         let lut = Lut::new(&pal);
-        for c in [WATER, NET, SURFACE, TEXT, CHASE, DOMINANT] {
+        for c in [WATER, NET, SURFACE, TEXT, CHASE, DOMINANT, OBSTACLE] {
             let i = lut.index(c[0], c[1], c[2]);
             let d: i32 = (0..3)
                 .map(|a| (pal[i as usize][a] as i32 - c[a] as i32).abs())
