@@ -17,7 +17,7 @@
 //! The recording travels the same way ([`crate::encode`]); its JSON header
 //! sits in a `<script type="application/json">` block.
 
-use crate::encode::{FORMAT_VERSION, Section, encode, gzip_base64};
+use crate::encode::{FORMAT_VERSION, Section, base64, encode, gzip, gzip_base64};
 use crate::recording::{
     BehaviourMeta, CageShape, FLAG_CHASED, FLAG_CHASING, FLAG_RESPAWNED, Info, ObstacleShape,
     Quant, Recording,
@@ -86,7 +86,9 @@ struct FlagBits {
 pub struct PageSize {
     /// The recording's sections before gzip.
     pub data_raw: usize,
-    /// The recording as carried in the page (gzip + base64).
+    /// The recording gzipped.
+    pub data_gzip: usize,
+    /// The recording as carried in the page (gzip, then base64).
     pub data: usize,
     /// three.js as carried in the page.
     pub library: usize,
@@ -119,7 +121,8 @@ pub fn page(rec: &Recording) -> (String, PageSize) {
         sections: &enc.sections,
     };
     let json = serde_json::to_string(&header).expect("the header serialises");
-    let data = gzip_base64(&enc.bytes);
+    let zipped = gzip(&enc.bytes);
+    let data = base64(&zipped);
     let lib = &*LIBRARY;
     let html = fill(
         TEMPLATE,
@@ -138,6 +141,7 @@ pub fn page(rec: &Recording) -> (String, PageSize) {
     );
     let size = PageSize {
         data_raw: enc.bytes.len(),
+        data_gzip: zipped.len(),
         data: data.len(),
         library: lib.iter().map(String::len).sum(),
         total: html.len(),

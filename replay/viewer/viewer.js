@@ -570,10 +570,12 @@ async function main() {
       ctx.fillText(v.toFixed(2), 8, y(v) + 4);
     }
     ctx.setLineDash([]);
-    const ticks = Math.max(2, Math.floor((w - pad.l - pad.r) / 80));
-    for (let k = 0; k <= ticks; k++) {
-      const t = t0 + ((t1 - t0) * k) / ticks;
-      ctx.fillText(`${t.toFixed(t1 - t0 < 10 ? 1 : 0)} s`, x(t) - 10, h - 6);
+    // Time ticks at a round step (1, 2 or 5 × 10^k s), about 80 px apart.
+    const raw = ((t1 - t0) * 80) / Math.max(1, w - pad.l - pad.r);
+    const mag = Math.pow(10, Math.floor(Math.log10(Math.max(raw, 1e-6))));
+    const step = [1, 2, 5, 10].map((m) => m * mag).find((v) => v >= raw);
+    for (let t = Math.ceil(t0 / step) * step; t <= t1 + 1e-9; t += step) {
+      ctx.fillText(`${+t.toFixed(6)} s`, x(t) - 10, h - 6);
     }
     const line = (vals, col) => {
       ctx.strokeStyle = col; ctx.lineWidth = 1.6; ctx.beginPath();

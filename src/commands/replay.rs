@@ -95,12 +95,12 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
     let size = write_page(&args.out, &rec)?;
     println!("{}", describe(&args.out, &rec, &size));
     if let Some(gif) = &args.gif {
-        let bytes = write_gif(gif, &rec, args.gif_view, args.gif_size, args.gif_speed)?;
+        let size = write_gif(gif, &rec, args.gif_view, args.gif_size, args.gif_speed)?;
         println!(
-            "wrote {}: {} frames, {:.1} MB",
+            "wrote {}: {} frames, {}",
             gif.display(),
             rec.frames(),
-            bytes as f64 / 1e6
+            bytes(size)
         );
     }
     Ok(())
@@ -121,17 +121,26 @@ pub fn write_page(path: &Path, rec: &Recording) -> Result<PageSize> {
 pub fn describe(path: &Path, rec: &Recording, size: &PageSize) -> String {
     let span = rec.times.last().copied().unwrap_or(0.0) - rec.times[0];
     format!(
-        "wrote {}: {} frames × {} fish over {:.1} s ({:.2} frames/s); {:.1} MB (recording {:.1} MB gzipped from {:.1} MB, three.js {:.1} MB)",
+        "wrote {}: {} frames × {} fish over {:.1} s ({:.2} frames/s); {} (recording {} gzipped from {}, three.js {})",
         path.display(),
         rec.frames(),
         rec.fish,
         span,
         (rec.frames() - 1) as f64 / span.max(1e-9) as f64,
-        size.total as f64 / 1e6,
-        size.data as f64 / 1e6,
-        size.data_raw as f64 / 1e6,
-        size.library as f64 / 1e6
+        bytes(size.total),
+        bytes(size.data_gzip),
+        bytes(size.data_raw),
+        bytes(size.library),
     )
+}
+
+/// A byte count for people: `5.9 MB`, `48 kB`.
+pub fn bytes(n: usize) -> String {
+    if n >= 1_000_000 {
+        format!("{:.1} MB", n as f64 / 1e6)
+    } else {
+        format!("{:.0} kB", n as f64 / 1e3)
+    }
 }
 
 /// The viewer's title block for `env`'s scene driven by `policy`.
