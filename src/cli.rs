@@ -67,7 +67,7 @@ pub struct SceneArgs {
     pub phase: Phase,
 }
 
-fn parse_phase(s: &str) -> Result<Phase, String> {
+pub(crate) fn parse_phase(s: &str) -> Result<Phase, String> {
     s.parse()
 }
 

@@ -245,6 +245,11 @@ function buildCage(THREE, meta) {
   return group;
 }
 
+/** Text made safe for innerHTML. */
+function esc(text) {
+  return String(text).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' })[c]);
+}
+
 function fmt(x, digits) {
   return Number.isFinite(x) ? x.toFixed(digits) : '–';
 }
@@ -269,7 +274,7 @@ async function main() {
   for (const b of meta.behaviours) {
     const r = document.createElement('div');
     r.className = 'row';
-    r.innerHTML = `<span class="swatch" style="background:${b.colour}"></span>`;
+    r.innerHTML = `<span class="swatch" style="background:${esc(b.colour)}"></span>`;
     r.append(`${b.name} (${b.count})`);
     legend.append(r);
   }
@@ -481,13 +486,13 @@ async function main() {
         const v = halfToFloat(s.terms[(t * F + f) * N + i]); // stored [term][frame][fish]
         total += v;
         const cls = v < 0 ? 'neg' : v > 0 ? 'pos' : 'muted';
-        rows += `<tr><td>${termNames[t]}</td><td class="v ${cls}" colspan="2">${fmt(v, 3)}</td></tr>`;
+        rows += `<tr><td>${esc(termNames[t])}</td><td class="v ${cls}" colspan="2">${fmt(v, 3)}</td></tr>`;
       }
       rows += `<tr><td><b>total</b></td><td class="v" colspan="2"><b>${fmt(total, 3)}</b></td></tr>`;
     } else {
       rows += '<tr><td colspan="3" class="muted">reward terms not recorded by this source</td></tr>';
     }
-    $('fish-info').innerHTML = `<h3>fish ${i}</h3><div class="muted">${b.name} · BL ${fmt(bl, 3)} m${s.dominant[i] ? ' · dominant' : ''}</div><table>${rows}</table>`;
+    $('fish-info').innerHTML = `<h3>fish ${i}</h3><div class="muted">${esc(b.name)} · BL ${fmt(bl, 3)} m${s.dominant[i] ? ' · dominant' : ''}</div><table>${rows}</table>`;
   }
 
   // Picking: a click (not a drag) on the view.

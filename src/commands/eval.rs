@@ -59,6 +59,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         let path = out.join("replay.html");
         let size = super::replay::write_page(&path, &rec)?;
         println!("{}", super::replay::describe(&path, &rec, &size));
+        super::replay::warn_if_large(&size);
     }
     Ok(())
 }

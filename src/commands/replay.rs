@@ -13,7 +13,7 @@
 //!   `metrics.csv` — a changed policy or code is an error, not a different film.
 
 use super::{load_scene, make_policy};
-use crate::cli::{PolicyArgs, SceneArgs};
+use crate::cli::{PolicyArgs, SceneArgs, parse_phase};
 use crate::clip::{GifView, write_gif};
 use crate::io::write_atomic;
 use crate::report::{Evaluation, RunArgs, evaluate};
@@ -67,10 +67,6 @@ pub struct ReplayArgs {
     pub gif_speed: f64,
 }
 
-fn parse_phase(s: &str) -> Result<Phase, String> {
-    s.parse()
-}
-
 pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
     let rec = match &args.from {
         Some(dir) => from_folder(dirs, dir, args)?,
@@ -94,6 +90,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
     };
     let size = write_page(&args.out, &rec)?;
     println!("{}", describe(&args.out, &rec, &size));
+    warn_if_large(&size);
     if let Some(gif) = &args.gif {
         let size = write_gif(gif, &rec, args.gif_view, args.gif_size, args.gif_speed)?;
         println!(
@@ -132,6 +129,19 @@ pub fn describe(path: &Path, rec: &Recording, size: &PageSize) -> String {
         bytes(size.data_raw),
         bytes(size.library),
     )
+}
+
+/// Browsers load pages of a few hundred MB slowly or not at all.
+pub const LARGE_PAGE: usize = 200_000_000;
+
+/// Say so when a page is too large to open comfortably.
+pub fn warn_if_large(size: &PageSize) {
+    if size.total > LARGE_PAGE {
+        eprintln!(
+            "warning: a {} page loads slowly and may not open at all; lower --fps or --seconds (size grows with fish × frames, about 13 bytes each before gzip, 27 with reward terms)",
+            bytes(size.total)
+        );
+    }
 }
 
 /// A byte count for people: `5.9 MB`, `48 kB`.
