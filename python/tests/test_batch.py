@@ -111,9 +111,9 @@ def test_short_episodes_truncate_every_fish_that_did_not_hit_a_boundary():
 def test_behaviours_give_each_ones_rows():
     env = deepfoids.BatchEnv(scene="three_species")
     assert [(b.name, b.species, b.rows) for b in env.behaviours] == [
-        ("coho", "coho", slice(0, 100)),
-        ("yellowtail", "yellowtail", slice(100, 200)),
-        ("seabream", "seabream", slice(200, 300)),
+        ("coho_regular", "coho", slice(0, 100)),
+        ("yellowtail_regular", "yellowtail", slice(100, 200)),
+        ("seabream_regular", "seabream", slice(200, 300)),
     ]
     assert [b.period_ticks for b in env.behaviours] == [2, 1, 1]
     assert env.tick_seconds == pytest.approx(0.1)

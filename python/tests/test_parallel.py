@@ -37,7 +37,7 @@ def test_same_seed_same_run_and_new_seed_new_run():
         env = deepfoids.parallel_env(scene="seabream_default")
         obs, _ = env.reset(seed=seed)
         rng = np.random.default_rng(5)
-        trace = [obs["seabream_3"]["grid"].copy()]
+        trace = [obs["seabream_regular_3"]["grid"].copy()]
         for _ in range(steps):
             obs, rew, term, trunc, info = env.step(random_actions(env, rng))
             trace.append(np.stack([obs[a]["vector"] for a in env.agents]))
@@ -129,9 +129,9 @@ def test_mixed_decision_intervals_in_three_species():
     for agent, i in info.items():
         by_behaviour.setdefault(i["behaviour"], set()).add(i["decided"])
     # Coho decide every 200 ms, seabream and yellowtail every 100 ms (one tick).
-    assert by_behaviour["coho"] == {False}
-    assert by_behaviour["seabream"] == {True} and by_behaviour["yellowtail"] == {True}
-    coho = next(a for a in env.agents if a.startswith("coho_"))
+    assert by_behaviour["coho_regular"] == {False}
+    assert by_behaviour["seabream_regular"] == {True} and by_behaviour["yellowtail_regular"] == {True}
+    coho = next(a for a in env.agents if a.startswith("coho_regular_"))
     assert rew[coho] == 0.0
     np.testing.assert_array_equal(obs1[coho]["grid"], obs[coho]["grid"])
     obs2, rew, term, trunc, info = env.step(zero)
@@ -155,8 +155,8 @@ def test_render_shows_the_cage_and_the_fish():
 def test_agent_names_and_state():
     env = deepfoids.parallel_env(scene="three_species")
     env.reset(seed=0)
-    assert env.agents[:2] == ["coho_0", "coho_1"]
-    assert len(env.agents) == 300 and "yellowtail_99" in env.agents
+    assert env.agents[:2] == ["coho_regular_0", "coho_regular_1"]
+    assert len(env.agents) == 300 and "yellowtail_regular_99" in env.agents
     state = env.state()
     assert state.shape == (300, 9) and state.dtype == np.float32
     np.testing.assert_allclose(np.linalg.norm(state[:, 3:6], axis=1), 1.0, atol=1e-5)
