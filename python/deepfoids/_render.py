@@ -38,11 +38,11 @@ def top_view(core, behaviours, size: int = 512) -> np.ndarray:
     bl = state[:, 7] * scale
     colour = COLOURS[state[:, 8].astype(np.int64) % len(COLOURS)]
     # Heading lines first, bodies on top.
-    for k in np.linspace(0.0, 0.6, 7):
+    for k in np.linspace(0.0, 0.8, 16):
         hx = np.rint(px + state[:, 3] * bl * k).astype(np.int64)
         hy = np.rint(py - state[:, 5] * bl * k).astype(np.int64)
         _put(image, hx, hy, colour)
-    radius = np.maximum(bl * 0.15, 1.0)
+    radius = np.clip(bl * 0.12, 1.5, 3.0)
     for dx in range(-3, 4):
         for dy in range(-3, 4):
             near = dx * dx + dy * dy <= radius * radius

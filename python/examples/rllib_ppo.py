@@ -82,7 +82,7 @@ class DeepFoidsRLlibEnv(MultiAgentEnv):
         obs, rew, term, trunc, info = self.env.step(action_dict)
         ended = {a for a in rew if term[a] or trunc[a]}
         new = {info[a]["next_agent"] for a in ended if "next_agent" in info[a]}
-        acting = {a for a in obs if info[a]["decided"] or a in ended}
+        acting = [a for a in obs if info[a]["decided"] or a in ended]
         obs = {a: obs[a] for a in acting}
         info = {a: info[a] for a in acting}
         rew = {a: rew[a] for a in acting if a not in new}

@@ -83,5 +83,5 @@ def test_policy_errors_name_the_path(tmp_path):
     with pytest.raises(ValueError, match=r"vector must be float32 \[4, 6\]"):
         policy.act(grid[:4], vector[:3])
     env = deepfoids.BatchEnv(scene="coho_small")
-    with pytest.raises(KeyError, match="no network for behaviour 'coho_'"):
+    with pytest.raises(KeyError, match=r"no network for behaviour 'coho_small' \(species coho\); it has: seabream_regular"):
         policy.act(env.reset(), env=env)
