@@ -27,6 +27,7 @@ start (``~/ray_results/…``); the trained modules in ``--out`` (RLlib checkpoin
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -185,17 +186,24 @@ def main() -> None:
     )
     config = (
         PPOConfig()
-        .environment("deepfoids", env_config=env_config)
+        # The environment clips actions to [-1, 1] itself (SPEC §4); RLlib's
+        # clipping connector looks spaces up by agent id, and respawned fish are
+        # agents it has not seen.
+        .environment("deepfoids", env_config=env_config,
+                     normalize_actions=False, clip_actions=False)
         .env_runners(
             num_env_runners=args.env_runners,
             num_envs_per_env_runner=1,
             # Let each runner's env use the cores it gets (rayon inside).
             num_cpus_per_env_runner=1,
             rollout_fragment_length="auto",
+            sample_timeout_s=600.0,
         )
         .multi_agent(
             policies=set(behaviours),
             policy_mapping_fn=lambda agent_id, episode, **kw: behaviour_of(agent_id),
+            # Batches and budgets count agent decisions, as ML-Agents (SPEC §8).
+            count_steps_by="agent_steps",
         )
         .rl_module(rl_module_spec=MultiRLModuleSpec(
             rl_module_specs={b: module for b in behaviours}))
@@ -220,6 +228,8 @@ def main() -> None:
         result = algo.train()
         dt = time.perf_counter() - t
         runners = result.get("env_runners", {})
+        if i == 1 and os.environ.get("DEEPFOIDS_RLLIB_KEYS"):
+            Path(os.environ["DEEPFOIDS_RLLIB_KEYS"]).write_text(repr(result))
         steps = runners.get("num_agent_steps_sampled", {})
         n = int(sum(steps.values())) if isinstance(steps, dict) else int(steps or 0)
         returns = runners.get("agent_episode_returns_mean", {})
