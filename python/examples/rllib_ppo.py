@@ -27,7 +27,6 @@ start (``~/ray_results/…``); the trained modules in ``--out`` (RLlib checkpoin
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
@@ -175,6 +174,7 @@ def main() -> None:
     probe = deepfoids.BatchEnv(args.scene, args.phase, configs=None)
     behaviours = [b.name for b in probe.behaviours]
     fish = probe.n_agents
+    decisions_per_tick = sum(b.count / b.period_ticks for b in probe.behaviours)
     print(f"{args.scene}: {fish} fish, behaviours {', '.join(behaviours)}; "
           f"{args.env_runners} env runner(s)", flush=True)
 
@@ -202,13 +202,15 @@ def main() -> None:
         .multi_agent(
             policies=set(behaviours),
             policy_mapping_fn=lambda agent_id, episode, **kw: behaviour_of(agent_id),
-            # Batches and budgets count agent decisions, as ML-Agents (SPEC §8).
-            count_steps_by="agent_steps",
+            # Count ticks: RLlib's agent-step counter sums a statistic per agent
+            # id and fails (NaN) once a respawned agent's old id has gone quiet.
+            count_steps_by="env_steps",
         )
         .rl_module(rl_module_spec=MultiRLModuleSpec(
             rl_module_specs={b: module for b in behaviours}))
         .training(
-            train_batch_size_per_learner=args.train_batch,
+            # In ticks: about --train-batch agent decisions per update.
+            train_batch_size_per_learner=max(1, round(args.train_batch / decisions_per_tick)),
             minibatch_size=args.minibatch,
             num_epochs=args.epochs,
             lr=args.lr,
@@ -228,16 +230,15 @@ def main() -> None:
         result = algo.train()
         dt = time.perf_counter() - t
         runners = result.get("env_runners", {})
-        if i == 1 and os.environ.get("DEEPFOIDS_RLLIB_KEYS"):
-            Path(os.environ["DEEPFOIDS_RLLIB_KEYS"]).write_text(repr(result))
-        steps = runners.get("num_agent_steps_sampled", {})
-        n = int(sum(steps.values())) if isinstance(steps, dict) else int(steps or 0)
-        returns = runners.get("agent_episode_returns_mean", {})
-        mean_return = np.mean(list(returns.values())) if returns else float("nan")
+        # Per agent id; ids of earlier lives that took no step this time are NaN.
+        steps = [float(v) for v in runners.get("num_agent_steps_sampled", {}).values()]
+        n = int(np.nansum(steps)) if steps else 0
+        returns = [float(v) for v in runners.get("module_episode_returns_mean", {}).values()]
+        mean_return = float(np.nanmean(returns)) if returns else float("nan")
         total_steps += n
         total_time += dt
         print(f"iteration {i}: {n} agent steps in {dt:.1f} s = {n / dt:,.0f} agent-steps/s; "
-              f"mean agent-episode return {mean_return:.1f}", flush=True)
+              f"mean episode return per behaviour {mean_return:.1f}", flush=True)
     print(f"{total_steps} agent steps in {total_time:.1f} s: "
           f"{total_steps / max(total_time, 1e-9):,.0f} agent-steps/s (sampling + PPO updates)")
     out = Path(args.out).resolve()

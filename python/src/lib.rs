@@ -147,12 +147,13 @@ impl Core {
         }
     }
 
-    fn advance(&mut self) -> Result<(), String> {
-        self.env.step(&self.actions).map_err(|e| e.to_string())?;
+    fn advance(&mut self) -> PyResult<()> {
+        self.env.step(&self.actions).map_err(value_error)?;
         if self.view_grid && self.env_grid_address() != self.viewed_at {
-            return Err("the environment moved its observation buffer during a step \
-                 (Env::step must not reallocate); the grid view is no longer valid"
-                .into());
+            return Err(PyRuntimeError::new_err(
+                "the environment moved its observation buffer during a step \
+                 (Env::step must not reallocate); the grid view is no longer valid",
+            ));
         }
         self.copy_output();
         Ok(())
@@ -230,13 +231,7 @@ impl Core {
                 self.actions[b].copy_from_slice(&a[info.first * 3..(info.first + info.count) * 3]);
             }
         }
-        py.detach(|| self.advance()).map_err(|e| {
-            if e.starts_with("the environment moved") {
-                PyRuntimeError::new_err(e)
-            } else {
-                PyValueError::new_err(e)
-            }
-        })
+        py.detach(|| self.advance())
     }
 
     /// The buffers as numpy arrays viewing this core's memory, read-only:
