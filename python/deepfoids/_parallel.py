@@ -3,19 +3,19 @@
 # Agents and their life cycle
 
 Every fish is an agent named ``"<behaviour>_<index>"`` (index within its
-behaviour, e.g. ``coho_17``). The Rust environment gives every fish a stream of
+behaviour, e.g. ``coho_regular_17``). The Rust environment gives every fish a stream of
 per-agent episodes (SPEC §7): a boundary collision *terminates* the episode and
 the fish respawns at once; reaching ``max_episode_decisions`` *truncates* it and
 the fish swims on. PettingZoo never revives an agent that ended, so each new
 episode of a fish is a new agent:
 
-* ``coho_17`` is fish 17's first episode; its second is ``coho_17.1``, its third
-  ``coho_17.2``, and so on.
-* At the step where ``coho_17`` terminates (reward −300) or is truncated, the
-  step's dicts hold ``coho_17`` with ``terminated``/``truncated`` True, and the
-  next life ``coho_17.1`` with its first observation, reward 0, both flags False
-  and ``infos["coho_17"]["next_agent"] == "coho_17.1"``. From then on
-  ``env.agents`` lists ``coho_17.1`` instead of ``coho_17``, and
+* ``coho_regular_17`` is fish 17's first episode; its second is ``coho_regular_17.1``, its third
+  ``coho_regular_17.2``, and so on.
+* At the step where ``coho_regular_17`` terminates (reward −300) or is truncated, the
+  step's dicts hold ``coho_regular_17`` with ``terminated``/``truncated`` True, and the
+  next life ``coho_regular_17.1`` with its first observation, reward 0, both flags False
+  and ``infos["coho_regular_17"]["next_agent"] == "coho_regular_17.1"``. From then on
+  ``env.agents`` lists ``coho_regular_17.1`` instead of ``coho_regular_17``, and
   ``possible_agents`` gains it: unlike PettingZoo's usual fixed list,
   ``possible_agents`` holds the first lives at reset and grows by one name per
   respawn (it always contains every agent ever listed in the episode).
@@ -57,19 +57,12 @@ from ._batch import BatchEnv, TERM_NAMES
 from ._spaces import action_space, observation_space
 
 
-def parallel_env(
-    scene: str = "coho_default",
-    phase: str = "pretrain",
-    seed: int = 0,
-    configs=None,
-    max_episode_decisions: Optional[int] = None,
-    render_mode: Optional[str] = None,
-) -> "DeepFoidsParallelEnv":
-    """The DeepFoids environment as a PettingZoo `ParallelEnv` (see this module's doc)."""
-    return DeepFoidsParallelEnv(scene, phase, seed, configs, max_episode_decisions, render_mode)
-
-
 class DeepFoidsParallelEnv(ParallelEnv):
+    """The DeepFoids environment as a PettingZoo `ParallelEnv` (see this module's doc).
+
+    Arguments as `deepfoids.BatchEnv`'s, plus `render_mode` (None or ``"rgb_array"``).
+    """
+
     metadata = {"name": "deepfoids_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
 
     def __init__(
@@ -234,3 +227,8 @@ def _parse_fish(agent: str, first_names: dict[str, int]) -> Optional[int]:
     if dot and life.isdigit() and int(life) > 0:
         return first_names.get(base)
     return None
+
+
+#: ``deepfoids.parallel_env(scene="coho_default", phase="pretrain", seed=0, configs=None,
+#: max_episode_decisions=None, render_mode=None)``, as PettingZoo environments name it.
+parallel_env = DeepFoidsParallelEnv

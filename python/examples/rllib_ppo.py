@@ -17,7 +17,7 @@ RLlib has them.
 The environment reaches RLlib through `DeepFoidsRLlibEnv`, a small adapter over
 `deepfoids.parallel_env`: only agents whose behaviour decided at a tick are asked
 for actions (in three_species coho decide every other tick), each respawn is a
-new agent id (``coho_17.1``; see `deepfoids._parallel`), and the episode ends
+new agent id (``coho_regular_17.1``; see `deepfoids._parallel`), and the episode ends
 when the PettingZoo episode does (``max_episode_decisions``).
 
 Results: per-iteration lines on stdout; RLlib's own logs in the folder printed at
@@ -49,7 +49,7 @@ from torch import nn
 
 
 def behaviour_of(agent_id: str) -> str:
-    """``coho_17`` and ``coho_17.3`` → ``coho``."""
+    """``coho_regular_17`` and ``coho_regular_17.3`` → ``coho_regular``."""
     return agent_id.rsplit("_", 1)[0]
 
 
