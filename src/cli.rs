@@ -113,9 +113,12 @@ pub struct EvalArgs {
     pub policy: String,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
-    /// Simulated seconds
+    /// Simulated seconds recorded
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
+    /// Simulated seconds run before recording (the school settles from its random start)
+    #[arg(long, default_value_t = 0.0)]
+    pub warmup: f64,
     /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,

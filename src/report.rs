@@ -5,7 +5,7 @@ use crate::io::{AtomicFile, write_atomic};
 use crate::plot::{FONT, pe, save_png};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
-use deepfoids_env::policy::action_buffers;
+use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{Env, Policy};
 use plotters::prelude::*;
 use serde::Serialize;
@@ -28,14 +28,20 @@ pub struct Evaluation {
     pub wall_seconds: f64,
 }
 
-/// Run `env` (fresh from `Env::new`) with `policy` for `seconds`, sampling every tick.
+/// Run `env` (fresh from `Env::new`) with `policy` for `warmup` simulated
+/// seconds unrecorded, then for `seconds`, sampling every tick.
 pub fn evaluate(
     env: &mut Env,
     policy: &mut dyn Policy,
+    warmup: f64,
     seconds: f64,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Evaluation> {
     let mut actions = action_buffers(env);
+    for _ in 0..(warmup / env.tick_seconds()).round().max(0.0) as u64 {
+        act_and_step(policy, env, &mut actions)?;
+    }
+    let t0 = env.output().time;
     let ticks = (seconds / env.tick_seconds()).round().max(1.0) as u64;
     let n = env.world().len();
     let tracked: Vec<usize> = (0..TRACKED.min(n))
@@ -57,10 +63,7 @@ pub fn evaluate(
     tracks.push(snapshot(env));
     let start = Instant::now();
     for t in 0..ticks {
-        policy
-            .act(env, &mut actions)
-            .map_err(|e| anyhow::anyhow!("policy {}: {e}", policy.name()))?;
-        let out = env.step(&actions)?;
+        let out = act_and_step(policy, env, &mut actions)?;
         recorder.count(out);
         recorder.sample(out);
         tracks.push(snapshot(env));
@@ -70,7 +73,7 @@ pub fn evaluate(
         recorder,
         tracks,
         tracked,
-        seconds: env.output().time,
+        seconds: env.output().time - t0,
         wall_seconds: start.elapsed().as_secs_f64(),
     })
 }
@@ -83,6 +86,8 @@ pub struct EvalMeta<'a> {
     pub seed: u64,
     pub phase: &'a str,
     pub deterministic: bool,
+    /// Simulated seconds run before recording.
+    pub warmup: f64,
     pub seconds: f64,
     pub wall_seconds: f64,
     pub ticks_per_second: f64,
@@ -155,8 +160,18 @@ fn write_csv(path: &Path, eval: &Evaluation) -> Result<()> {
 /// Print the short table `eval` shows.
 pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
     println!(
-        "{} · policy {} · seed {} · {:.0} simulated s in {:.1} s wall ({:.0} ticks/s)",
-        meta.scene, meta.policy, meta.seed, meta.seconds, meta.wall_seconds, meta.ticks_per_second
+        "{} · policy {} · seed {} · {:.0} simulated s{} in {:.1} s wall ({:.0} ticks/s)",
+        meta.scene,
+        meta.policy,
+        meta.seed,
+        meta.seconds,
+        if meta.warmup > 0.0 {
+            format!(" after {:.0} s warm-up", meta.warmup)
+        } else {
+            String::new()
+        },
+        meta.wall_seconds,
+        meta.ticks_per_second
     );
     println!(
         "P {:.3} ± {:.3}   M {:.3} ± {:.3}   state: {} ({})",

@@ -11,6 +11,9 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     if !(args.seconds > 0.0 && args.seconds.is_finite()) {
         bail!("--seconds must be a positive number, got {}", args.seconds);
     }
+    if !(args.warmup >= 0.0 && args.warmup.is_finite()) {
+        bail!("--warmup must be a number ≥ 0, got {}", args.warmup);
+    }
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
@@ -23,7 +26,13 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
             sa.seed
         ))
     });
-    let eval = evaluate(&mut env, policy.as_mut(), args.seconds, |_, _| {})?;
+    let eval = evaluate(
+        &mut env,
+        policy.as_mut(),
+        args.warmup,
+        args.seconds,
+        |_, _| {},
+    )?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
@@ -32,6 +41,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         seed: sa.seed,
         phase: sa.phase.as_str(),
         deterministic: true,
+        warmup: args.warmup,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),

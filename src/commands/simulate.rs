@@ -5,7 +5,7 @@ use super::{load_scene, make_policy};
 use crate::cli::SimulateArgs;
 use crate::io::AtomicFile;
 use anyhow::{Context, Result, bail};
-use deepfoids_env::policy::action_buffers;
+use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, StepOutput, TERM_NAMES};
 use std::io::Write;
 use std::path::PathBuf;
@@ -95,10 +95,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     let (mut speed_bl, mut depth, mut samples) = (0.0f64, 0.0f64, 0u64);
     let start = Instant::now();
     for _ in 0..ticks {
-        policy
-            .act(&env, &mut actions)
-            .map_err(|e| anyhow::anyhow!("policy {}: {e}", policy.name()))?;
-        let out = env.step(&actions)?;
+        let out = act_and_step(policy.as_mut(), &mut env, &mut actions)?;
         for (b, t) in tallies.iter_mut().enumerate() {
             t.add(out, b);
         }

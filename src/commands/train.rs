@@ -204,7 +204,7 @@ fn print_training(o: &TrainOutcome) {
 pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
     let mut env = Env::new(scene, opts.seed.wrapping_add(1_000_003));
     let mut policy = super::load_trained(run_dir, None, &env, opts.backend, true, opts.seed)?;
-    let eval = evaluate(&mut env, policy.as_mut(), opts.eval_seconds, |_, _| {})?;
+    let eval = evaluate(&mut env, policy.as_mut(), 0.0, opts.eval_seconds, |_, _| {})?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
@@ -213,6 +213,7 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
         seed: opts.seed,
         phase: env.scene().phase.as_str(),
         deterministic: true,
+        warmup: 0.0,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
