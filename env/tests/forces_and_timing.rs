@@ -149,3 +149,20 @@ fn decision_intervals() {
     );
     assert!((out.time - 0.2).abs() < 1e-6);
 }
+
+/// Regression (issue 11, item 4): the mixed-size coho scenes are at Onmaehama,
+/// the coho farm. At 11:00 in mid-March, 2 m deep, the water is 8.3 − 1 = 7.3 °C:
+/// Δv_temp = (8 − 7.3)/(8 + 60) = 0.0102941 up (at Nishiki it would be
+/// −(21 − 9)/(80 − 9) = −0.1690141, down).
+#[test]
+fn mixed_coho_scenes_are_at_the_coho_farm() {
+    for id in ["coho_mixed", "coho_mixed_small_cage"] {
+        let s = scene(id, 3);
+        assert_eq!(s.site.name, "onmaehama", "{id}");
+        assert_eq!((s.clock.month, s.clock.day), (3, 15), "{id}");
+        let mut env = calm_env(s);
+        common::place(&mut env, 0, Vec3::new(0.0, -2.0, 0.0), Vec3::Z, 0.2);
+        let (_, temp) = env.vertical_response(0);
+        assert!(close(temp, 0.0102941, 1e-6), "{id}: {temp}");
+    }
+}
