@@ -84,6 +84,8 @@ pub fn turn(f: Vec3, roll: f32, yaw: f32, pitch: f32, roll_max: f32) -> (Vec3, f
 /// What a decision asks of a fish.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Decision {
+    /// The desired velocity at the end of the decision (m/s).
+    pub target: Vec3,
     /// Velocity change to add at each of the k physics steps (m/s), `Δv_f / k`.
     pub dv_step: Vec3,
     /// Roll after the turn (rad).
@@ -115,9 +117,10 @@ pub fn decide(
     let target_speed = (speed + a0 * max_delta_speed_bl * bl)
         .clamp(speed_range_bl[0] * bl, speed_range_bl[1] * bl);
     let (f_new, roll_new) = turn(heading, roll, a2 * max_turn, a1 * max_turn, roll_max);
-    let dv = target_speed * f_new - speed * heading;
+    let target = target_speed * f_new;
     Decision {
-        dv_step: dv / k as f32,
+        target,
+        dv_step: (target - speed * heading) / k as f32,
         roll: roll_new,
     }
 }

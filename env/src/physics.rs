@@ -135,9 +135,6 @@ impl Physics<'_> {
             .enumerate()
             .for_each(|(a, (act, roll, speed, motor, since))| {
                 let p = params[a];
-                // A range set anew (a model switching to its night or hovering
-                // speeds) applies from the decision on.
-                *speed = speed.clamp(p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]);
                 let d = decide(
                     [act[0], act[1], act[2]],
                     heading[a],
@@ -152,8 +149,19 @@ impl Physics<'_> {
                 );
                 let (dv_light, dv_temp) =
                     vertical_response(info, light_pref[a], p.light_steep, site, i0, -position[a].y);
+                // A range set anew (a model switching to its night or hovering
+                // speeds) applies from the decision on: the speed the action
+                // changed is clamped into it, and the decision leads from there
+                // to the action's target.
+                let clamped = speed.clamp(p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]);
+                let dv_step = if clamped == *speed {
+                    d.dv_step
+                } else {
+                    *speed = clamped;
+                    (d.target - clamped * heading[a]) / k as f32
+                };
                 *motor = Motor {
-                    dv_step: d.dv_step,
+                    dv_step,
                     vertical_step: (dv_light + dv_temp) * bl[a] / k as f32,
                     speed_range: [p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]],
                 };
