@@ -373,7 +373,6 @@ impl Env {
             s.since[i] = crate::state::Since {
                 spawns: 1,
                 start_heading: f,
-                start_speed: w.speed[i],
                 ..Default::default()
             };
         }
@@ -588,6 +587,7 @@ impl Env {
         let rewards = Rewards {
             world: &self.state.world,
             since: &self.state.since,
+            motor: &self.state.motor,
             weights: &self.model.scene.rewards,
             pitch_threshold_deg: phys.pitch_threshold_deg,
             speed_threshold_bl: phys.speed_threshold_bl,

@@ -166,7 +166,7 @@ impl Physics<'_> {
                     speed_range: [p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]],
                 };
                 *roll = d.roll;
-                since.start_decision(heading[a], *speed);
+                since.start_decision(heading[a]);
             });
     }
 

@@ -11,7 +11,7 @@
 use crate::config::RewardWeights;
 use crate::kinematics::{angle_deg, pitch_deg};
 use crate::sensing::Surroundings;
-use crate::state::Since;
+use crate::state::{Motor, Since};
 use crate::world::{Chase, World};
 use glam::Vec3;
 
@@ -90,9 +90,12 @@ pub fn neighbour_distance(w: &RewardWeights, alignment: f32) -> f32 {
 }
 
 /// `r_E = −w_r · Δθ − w_s · |Δv_a|`: `Δθ` the body's rotation over the
-/// decision (degrees), `Δv_a` its speed change over the decision (BL/s).
-pub fn energy(w: &RewardWeights, turned_deg: f32, speed_change_bl: f32) -> f32 {
-    -w.w_r * turned_deg - w.w_s * speed_change_bl.abs()
+/// decision (degrees); `Δv_a` the velocity change the fish applies at each
+/// physics step of the decision, Eq. 4.4's `Δv_f/k + (Δv_light + Δv_temp)/k`
+/// (BL/s; "the delta accumulated speed at the current time step" — the
+/// thesis' Δv_a is Eq. 4.4's per-step vector; README, SPEC deviations).
+pub fn energy(w: &RewardWeights, turned_deg: f32, dv_a_bl: f32) -> f32 {
+    -w.w_r * turned_deg - w.w_s * dv_a_bl.abs()
 }
 
 /// `r_M`: `−10` if the pitch magnitude is at least `θrt` (53°); `+2` if it is
@@ -141,6 +144,8 @@ pub(crate) struct Outcome {
 pub(crate) struct Rewards<'a> {
     pub world: &'a World,
     pub since: &'a [Since],
+    /// Each fish's motor of the decision just ended (Eq. 4.4's per-step changes).
+    pub motor: &'a [Motor],
     pub weights: &'a RewardWeights,
     pub pitch_threshold_deg: f32,
     pub speed_threshold_bl: f32,
@@ -161,10 +166,12 @@ impl Rewards<'_> {
         if !terminated {
             terms.boundary_distance = boundary_distance(rw, seen.boundary_sum);
             terms.neighbour_distance = neighbour_distance(rw, seen.alignment_sum);
+            let m = &self.motor[i];
+            let dv_a = m.dv_step + Vec3::new(0.0, m.vertical_step, 0.0);
             terms.energy = energy(
                 rw,
                 angle_deg(since.start_heading, w.heading[i]),
-                (w.speed[i] - since.start_speed) / bl,
+                dv_a.length() / bl,
             );
             terms.movement = movement(
                 rw,
@@ -206,8 +213,9 @@ mod tests {
     }
 
     /// Hand-computed with the pretraining weights: 3 partners → −1.5; closeness
-    /// 0.25 → −0.5; alignment 1.5 → +2.25; a 10° turn and 0.2 BL/s slower →
-    /// −0.01 − 1 = −1.01; level at 0.5 BL/s → +2; no chase. Eq. 4.5: 1.24.
+    /// 0.25 → −0.5; alignment 1.5 → +2.25; a 10° turn and a per-step velocity
+    /// change of 0.2 BL/s → −0.01 − 1 = −1.01; level at 0.5 BL/s → +2; no
+    /// chase. Eq. 4.5: 1.24.
     #[test]
     fn terms_and_their_sum() {
         let w = pretrain();

@@ -37,9 +37,8 @@ pub(crate) struct Since {
     /// The partners of the previous decision (to count new collisions).
     pub n_prev: u8,
     pub prev: [u32; MAX_HITS],
-    /// Heading and speed (m/s) at the decision (for the energy term).
+    /// Heading at the decision (for the energy term's rotation).
     pub start_heading: Vec3,
-    pub start_speed: f32,
     /// Respawns so far (keys the spawn stream); never reset.
     pub spawns: u32,
     /// Decisions in the current episode.
@@ -56,7 +55,6 @@ impl Default for Since {
             n_prev: 0,
             prev: [0; MAX_HITS],
             start_heading: Vec3::Z,
-            start_speed: 0.0,
             spawns: 0,
             episode_len: 0,
         }
@@ -86,15 +84,14 @@ impl Since {
         (fresh + (self.n_hits as usize - listed)) as u16
     }
 
-    /// Start a new decision from the fish's current heading and speed.
-    pub fn start_decision(&mut self, heading: Vec3, speed: f32) {
+    /// Start a new decision from the fish's current heading.
+    pub fn start_decision(&mut self, heading: Vec3) {
         self.n_prev = self.n_hits.min(MAX_HITS as u8);
         self.prev = self.hits;
         self.n_hits = 0;
         self.crossed = false;
         self.caught = false;
         self.start_heading = heading;
-        self.start_speed = speed;
     }
 }
 
@@ -139,7 +136,7 @@ mod tests {
         let mut s = Since::default();
         s.add_hit(3);
         s.add_hit(5);
-        s.start_decision(Vec3::Z, 0.1);
+        s.start_decision(Vec3::Z);
         s.add_hit(5);
         s.add_hit(8);
         s.add_hit(8);
