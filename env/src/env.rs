@@ -369,7 +369,11 @@ impl Env {
             w.speed[i] = b.v0_bl * w.bl[i];
             w.chase[i] = Chase::None;
             s.axes[i] = crate::kinematics::basis(f, 0.0);
-            s.motor[i] = Default::default();
+            let range = m.traits.params[i].speed_bl;
+            s.motor[i] = crate::state::Motor {
+                speed_range: [range[0] * w.bl[i], range[1] * w.bl[i]],
+                ..Default::default()
+            };
             s.since[i] = crate::state::Since {
                 spawns: 1,
                 start_heading: f,
