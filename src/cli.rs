@@ -73,7 +73,7 @@ fn parse_phase(s: &str) -> Result<Phase, String> {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`, `foids`, `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `random`, `foids`, `foids_table1` (Table 1 as published), `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "random")]
     pub policy: String,
     #[command(flatten)]
@@ -108,7 +108,7 @@ fn parse_backend(s: &str) -> Result<deepfoids_ppo::Backend, String> {
 pub struct EvalArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[command(flatten)]

@@ -156,3 +156,35 @@ fn boids_count_every_neighbour_in_range() {
         "{a:?}"
     );
 }
+
+/// The parameter files say what the code's defaults say: `foids.toml` is the
+/// tuned default (Table 1 with w_rb = 10, w_fb = 15), `foids_table1.toml` Table 1
+/// as published (w_rb = w_fb = 1), `boids.toml` Boids' default (boundary weight 6).
+#[test]
+fn baseline_files_match_the_documented_sets() {
+    use deepfoids_env::baselines::BoidsConfig;
+    let d = dirs();
+    let tuned = FoidsConfig::load(&d.baseline("foids").unwrap()).unwrap();
+    assert_eq!(tuned, FoidsConfig::default());
+    assert_eq!(
+        (tuned.regular_boundary_weight, tuned.front_boundary_weight),
+        (10.0, 15.0)
+    );
+    let table1 = FoidsConfig::load(&d.baseline("foids_table1").unwrap()).unwrap();
+    assert_eq!(table1, FoidsConfig::table1());
+    assert_eq!(
+        (
+            table1.separation_weight,
+            table1.alignment_weight,
+            table1.cohesion_weight,
+            table1.regular_boundary_weight,
+            table1.front_boundary_weight,
+            table1.vertical_multiplier,
+            table1.light_steep
+        ),
+        (30.0, 12.0, 0.1, 1.0, 1.0, 2.5, [-7.0, 409.0])
+    );
+    let boids = BoidsConfig::load(&d.baseline("boids").unwrap()).unwrap();
+    assert_eq!(boids, BoidsConfig::default());
+    assert_eq!(boids.boundary_weight, 6.0);
+}

@@ -34,8 +34,8 @@ pub fn make_policy(
     let path = std::path::Path::new(name);
     match name {
         "random" => Ok(Box::new(RandomPolicy { seed })),
-        "foids" => Ok(Box::new(Foids::new(
-            FoidsConfig::load(&dirs.baseline("foids")?)?,
+        "foids" | "foids_table1" => Ok(Box::new(Foids::new(
+            FoidsConfig::load(&dirs.baseline(name)?)?,
             seed,
         ))),
         "boids" => Ok(Box::new(Boids::new(BoidsConfig::load(
@@ -58,7 +58,7 @@ pub fn make_policy(
             "policy `{other}` does not exist (a run folder or a .onnx file was expected there)"
         ),
         other => bail!(
-            "unknown policy `{other}`; allowed: random, foids, boids, a run folder (runs/<id>) or a .onnx file"
+            "unknown policy `{other}`; allowed: random, foids, foids_table1, boids, a run folder (runs/<id>) or a .onnx file"
         ),
     }
 }
