@@ -157,6 +157,15 @@ fn write_csv(path: &Path, eval: &Evaluation) -> Result<()> {
     Ok(())
 }
 
+/// The share of time in each state, e.g. `swarm 6 %, milling 74 %, …`.
+pub fn state_shares(s: &Summary) -> String {
+    s.state_share
+        .iter()
+        .map(|(st, x)| format!("{} {:.0} %", st.as_str(), 100.0 * x))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Print the short table `eval` shows.
 pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
     println!(
@@ -180,11 +189,7 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
         s.m_mean,
         s.m_std,
         s.dominant_state.as_str(),
-        s.state_share
-            .iter()
-            .map(|(st, x)| format!("{} {:.0} %", st.as_str(), 100.0 * x))
-            .collect::<Vec<_>>()
-            .join(", ")
+        state_shares(s)
     );
     println!(
         "nearest neighbour {:.2} BL (5th pct {:.2}) · speed {:.2} BL/s · collisions per fish-hour: boundary {:.1}, neighbour {:.1} · reward/decision {:.3}",

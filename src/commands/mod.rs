@@ -168,11 +168,7 @@ pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
         s.p_mean,
         s.m_mean,
         s.dominant_state.as_str(),
-        s.state_share
-            .iter()
-            .map(|(st, x)| format!("{} {:.0} %", st.as_str(), 100.0 * x))
-            .collect::<Vec<_>>()
-            .join(", "),
+        crate::report::state_shares(s),
         s.mean_speed_bl,
         s.boundary_collisions_per_fish_hour,
         s.neighbour_collisions_per_fish_hour
