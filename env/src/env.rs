@@ -19,8 +19,8 @@
 //! * **terminated** is a true end state: the fish's collider crossed a wall,
 //!   the bottom, the surface or an obstacle (reward −300, SPEC §6). The fish
 //!   respawns at once, at the physics step of the crossing, at a random valid
-//!   pose with speed `v0`, and glides without action until its behaviour's next
-//!   decision. The terminated transition earns `−300` plus the neighbour
+//!   pose with speed `v0`, and glides without action (and without light or
+//!   temperature response) until its behaviour's next decision. The terminated transition earns `−300` plus the neighbour
 //!   collisions counted before the crossing; the other terms are not evaluated
 //!   for it, since its end state lies outside the cage. Do not bootstrap.
 //! * **truncated** is an outside limit: the episode reached
@@ -59,7 +59,8 @@
 //! 1. check the actions; each deciding behaviour starts its decision
 //!    (`physics::decide`: motor, roll, and the responses to light and
 //!    temperature at the depth then);
-//! 2. `k_tick` physics steps;
+//! 2. the tick's physics steps (`physics::step`), the speed kept in each
+//!    fish's range ([`FishParams`]) at every one;
 //! 3. the decision pass over the behaviours deciding at the new tick: sense,
 //!    reward, episode ends, newest frame and vector observation (in parallel);
 //! 4. chases end and start; fish whose partner changed re-sense their newest frame.
