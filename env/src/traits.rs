@@ -10,7 +10,7 @@
 //!   `light_pref`, `dominant`, `behaviour`, `species`).
 //! * Derived from the species and `BL`, fixed: the box collider's half extents
 //!   and bounding radius, the visual radius the grid sensor sees, the sensing
-//!   range `d_sense` — here, in [`Traits`].
+//!   range `d_sense` — here, in `Traits`.
 //! * [`FishParams`]: the speed range (SPEC §4: the species' schooling range
 //!   `speed_bl`, whose lower bound is a floor) and the light steepness of
 //!   Eq. 4.2. They default to the species' values for every fish whoever acts;
