@@ -75,7 +75,7 @@ pub(crate) fn parse_phase(s: &str) -> Result<Phase, String> {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`, `foids`, `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `random`, `foids`, `foids_table1` (Table 1 as published), `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "random")]
     pub policy: String,
     #[command(flatten)]
@@ -110,14 +110,17 @@ fn parse_backend(s: &str) -> Result<deepfoids_ppo::Backend, String> {
 pub struct EvalArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
-    /// Simulated seconds
+    /// Simulated seconds recorded
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
+    /// Simulated seconds run before recording (the school settles from its random start)
+    #[arg(long, default_value_t = 0.0)]
+    pub warmup: f64,
     /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,

@@ -180,7 +180,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         for seed in 0..args.seeds {
             let mut env = Env::new(scene.clone(), seed);
             let mut policy = load_trained(&r.dir, None, &env, args.backend, true, seed)?;
-            let eval = evaluate(&mut env, policy.as_mut(), args.seconds, |_, _, _| {})?;
+            let eval = evaluate(&mut env, policy.as_mut(), 0.0, args.seconds, |_, _, _| {})?;
             summaries.push(eval.recorder.summary(eval.seconds));
         }
         rows.push(average(&summaries));

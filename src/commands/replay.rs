@@ -84,7 +84,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
                 seed: args.seed.unwrap_or(0),
                 phase: args.phase,
             };
-            let run = RunArgs::new(&sa, &args.policy, &args.policy_args, args.seconds);
+            let run = RunArgs::new(&sa, &args.policy, &args.policy_args, 0.0, args.seconds);
             simulate(dirs, &run, args.fps, "simulated by deepfoids replay")?.0
         }
     };
@@ -179,10 +179,27 @@ fn simulate(
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
     let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts)?;
-    let mut recorder = EnvRecorder::new(&env, info(&env, &policy.name(), source, vec![]), fps)?;
-    let eval = evaluate(&mut env, policy.as_mut(), run.seconds, |env, _, _| {
-        recorder.observe(env)
-    })?;
+    let info = info(&env, &policy.name(), source, vec![]);
+    let mut recorder = None;
+    let mut record_error = None;
+    let eval = evaluate(
+        &mut env,
+        policy.as_mut(),
+        run.warmup,
+        run.seconds,
+        |env, tick, _| match recorder.as_mut() {
+            None if tick == 0 => match EnvRecorder::new(env, info.clone(), fps) {
+                Ok(r) => recorder = Some(r),
+                Err(e) => record_error = Some(e),
+            },
+            Some(r) => r.observe(env),
+            None => {}
+        },
+    )?;
+    if let Some(e) = record_error {
+        return Err(e.into());
+    }
+    let recorder = recorder.context("the evaluation recorded nothing")?;
     let rec = recorder.finish(curves(&eval));
     Ok((rec, eval))
 }

@@ -211,11 +211,12 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
         checkpoint: None,
         stochastic: false,
         backend: opts.backend.as_str().to_string(),
+        warmup: 0.0,
         seconds: opts.eval_seconds,
     };
     let mut env = Env::new(scene, env_seed);
     let mut policy = super::load_trained(run_dir, None, &env, opts.backend, true, opts.seed)?;
-    let eval = evaluate(&mut env, policy.as_mut(), opts.eval_seconds, |_, _, _| {})?;
+    let eval = evaluate(&mut env, policy.as_mut(), 0.0, opts.eval_seconds, |_, _, _| {})?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
@@ -224,6 +225,7 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
         seed: opts.seed,
         phase: env.scene().phase.as_str(),
         deterministic: true,
+        warmup: 0.0,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
