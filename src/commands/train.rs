@@ -216,7 +216,13 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
     };
     let mut env = Env::new(scene, env_seed);
     let mut policy = super::load_trained(run_dir, None, &env, opts.backend, true, opts.seed)?;
-    let eval = evaluate(&mut env, policy.as_mut(), 0.0, opts.eval_seconds, |_, _, _| {})?;
+    let eval = evaluate(
+        &mut env,
+        policy.as_mut(),
+        0.0,
+        opts.eval_seconds,
+        |_, _, _| {},
+    )?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
