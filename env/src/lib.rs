@@ -14,6 +14,7 @@ pub mod env;
 pub mod forces;
 pub mod io;
 pub mod kinematics;
+pub mod limits;
 pub mod metrics;
 pub mod policy;
 pub mod rng;
