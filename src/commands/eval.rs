@@ -3,15 +3,15 @@
 use super::{load_scene, make_policy};
 use crate::cli::EvalArgs;
 use crate::report::{EvalMeta, RunArgs, evaluate, print_table, write_outputs};
-use anyhow::{Result, bail};
+use anyhow::Result;
+use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::{ConfigDirs, Env};
 use deepfoids_replay::EnvRecorder;
 use std::path::PathBuf;
 
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        bail!("--seconds must be a positive number, got {}", args.seconds);
-    }
+    crate::bounds::seconds("--seconds", args.seconds)?;
+    crate::bounds::at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
@@ -25,6 +25,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         ))
     });
     let mut recorder = if args.replay {
+        super::replay::check_recording(&env, args.seconds, args.replay_fps)?;
         let info = super::replay::info(&env, &policy.name(), "simulated by deepfoids eval", vec![]);
         Some(EnvRecorder::new(&env, info, args.replay_fps)?)
     } else {

@@ -6,7 +6,7 @@ use super::{load_scene, make_policy};
 use crate::cli::SimulateArgs;
 use crate::io::{AtomicFile, write_atomic};
 use crate::report::RunArgs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, StepOutput, TERM_NAMES};
 use std::io::Write;
@@ -44,9 +44,7 @@ impl Tally {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        bail!("--seconds must be a positive number, got {}", args.seconds);
-    }
+    crate::bounds::seconds("--seconds", args.seconds)?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let out_dir = args
