@@ -176,7 +176,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
     count_within("--clip-frames", args.clip_frames as u64, frames, "frames")?;
     image_size(args.width, args.height)?;
     positive_at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
-    if !(args.warmup >= 0.0) {
+    if args.warmup.is_nan() || args.warmup < 0.0 {
         bail!("--warmup must be 0 or more seconds, got {}", args.warmup);
     }
     at_most(
