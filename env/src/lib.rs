@@ -15,6 +15,7 @@ pub mod forces;
 pub mod io;
 pub mod kinematics;
 pub mod limits;
+pub mod lock;
 pub mod memory;
 pub mod metrics;
 pub mod policy;

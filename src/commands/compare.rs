@@ -133,6 +133,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| runs[0].state.scene.clone());
     let scene = load_scene(dirs, &scene_id, runs[0].state.phase)?;
+    let _lock = crate::io::lock_dir(&args.out)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
 

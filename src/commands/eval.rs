@@ -24,6 +24,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
             sa.seed
         ))
     });
+    let _lock = crate::io::lock_dir(&out)?;
     let mut recorder = if args.replay {
         super::replay::check_recording(&env, args.seconds, args.replay_fps)?;
         let info = super::replay::info(&env, &policy.name(), "simulated by deepfoids eval", vec![]);

@@ -208,6 +208,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
             }
         })
         .collect();
+    let _lock = crate::io::lock_dir(&args.out)?;
     let dataset = Dataset::new(
         &args.out,
         args.format,

@@ -51,6 +51,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
+    let _lock = crate::io::lock_dir(&out_dir)?;
     let mut env = Env::new(scene, sa.seed);
     let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &args.policy_args)?;
     let mut actions = action_buffers(&env);
