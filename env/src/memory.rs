@@ -77,6 +77,15 @@ pub fn env_bytes(scene: &Scene) -> u64 {
     n * (OBSERVATION_BYTES + FISH_STATE_BYTES) + grid_bytes + FIXED_BYTES
 }
 
+/// The most [`env_bytes`] can be for a scene within [`crate::limits`]:
+/// [`crate::limits::MAX_FISH`] fish and two grids of 256³ cells (≈ 10 GB).
+pub fn max_env_bytes() -> u64 {
+    let cells = (MAX_CELLS_PER_AXIS as u64).pow(3) + 1;
+    crate::limits::MAX_FISH as u64 * (OBSERVATION_BYTES + FISH_STATE_BYTES)
+        + 2 * 4 * cells
+        + FIXED_BYTES
+}
+
 /// What the machine can give, and where the figure comes from.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Available {
