@@ -50,6 +50,17 @@ fn configs_with(name: &str, from: &str, to: &str) -> PathBuf {
     root
 }
 
+/// `deepfoids [--configs ROOT] <cmd> --scene seabream_default --seconds S --out OUT`.
+fn on_seabream(configs: Option<&Path>, cmd: &str, seconds: &str, out: &Path) -> Command {
+    let mut args = vec![];
+    if let Some(root) = configs {
+        args.extend(["--configs", root.to_str().unwrap()]);
+    }
+    args.extend([cmd, "--scene", "seabream_default", "--seconds", seconds]);
+    args.extend(["--out", out.to_str().unwrap()]);
+    command(&args)
+}
+
 /// A failing run whose one-line error contains `want`.
 fn assert_refused(o: &Output, want: &str) {
     let t = text(o);
@@ -66,17 +77,9 @@ fn a_typo_in_a_scene_is_refused_with_its_bound() {
     // Once "memory allocation of 4896000000000 bytes failed" and a backtrace.
     let root = configs_with("count", "count = 10", "count = 100000000");
     let out = temp("count-out");
-    let o = deepfoids(&[
-        "--configs",
-        root.to_str().unwrap(),
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = on_seabream(Some(&root), "simulate", "1", &out)
+        .output()
+        .unwrap();
     assert_refused(
         &o,
         "scenes/seabream_default.toml: group[0].count = 100000000 is above the limit of 200000 fish",
@@ -84,17 +87,9 @@ fn a_typo_in_a_scene_is_refused_with_its_bound() {
     assert_eq!(text(&o).lines().count(), 1, "{}", text(&o));
     // Once accepted, with a mean depth of 5·10²⁹ m.
     let root = configs_with("edge", "edge = 3.0", "edge = 1e30");
-    let o = deepfoids(&[
-        "--configs",
-        root.to_str().unwrap(),
-        "eval",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = on_seabream(Some(&root), "eval", "1", &out)
+        .output()
+        .unwrap();
     assert_refused(&o, "cage.edge = 1e30 is above the limit of 1000 m");
     assert!(!out.exists(), "nothing is written");
 }
@@ -104,40 +99,20 @@ fn a_scene_too_large_for_the_memory_is_refused_before_it_is_allocated() {
     // 1,000 seabream need about 50 MB; say the machine has 20 MiB.
     let root = configs_with("memory", "count = 10", "count = 1000");
     let out = temp("memory-out");
-    let o = command(&[
-        "--configs",
-        root.to_str().unwrap(),
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "0.2",
-        "--out",
-        out.to_str().unwrap(),
-    ])
-    .env("DEEPFOIDS_MEMORY_AVAILABLE", "20M")
-    .output()
-    .unwrap();
+    let o = on_seabream(Some(&root), "simulate", "0.2", &out)
+        .env("DEEPFOIDS_MEMORY_AVAILABLE", "20M")
+        .output()
+        .unwrap();
     assert_refused(
         &o,
         "the environment of scene seabream_default (1000 fish) needs about 50.5 MB, but this machine has 21.0 MB available (set by DEEPFOIDS_MEMORY_AVAILABLE)",
     );
     assert!(text(&o).contains("use fewer fish"), "{}", text(&o));
     // With the machine's own figure it runs.
-    let o = command(&[
-        "--configs",
-        root.to_str().unwrap(),
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "0.2",
-        "--out",
-        out.to_str().unwrap(),
-    ])
-    .env_remove("DEEPFOIDS_MEMORY_AVAILABLE")
-    .output()
-    .unwrap();
+    let o = on_seabream(Some(&root), "simulate", "0.2", &out)
+        .env_remove("DEEPFOIDS_MEMORY_AVAILABLE")
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", text(&o));
     // A replay page is checked too: a day of frames of 10 fish in 10 MiB.
     let o = command(&[
@@ -389,15 +364,7 @@ fn one_process_at_a_time_writes_a_render_folder() {
     let held = format!("is in use by PID {} on host", first.id());
     assert_refused(&second, &held);
     assert!(text(&second).contains("wait for it to finish or stop it"));
-    let sim = deepfoids(&[
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "0.2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let sim = on_seabream(None, "simulate", "0.2", &out).output().unwrap();
     assert_refused(&sim, &held);
     assert!(!out.join("trajectories.csv").exists());
 
@@ -421,15 +388,7 @@ fn one_process_at_a_time_writes_a_render_folder() {
 #[test]
 fn a_finished_command_leaves_no_lock() {
     let out = temp("released");
-    let o = deepfoids(&[
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "0.2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = on_seabream(None, "simulate", "0.2", &out).output().unwrap();
     assert!(o.status.success(), "{}", text(&o));
     let parent = out.parent().unwrap();
     let name = format!(".{}.lock", out.file_name().unwrap().to_string_lossy());
