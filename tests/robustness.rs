@@ -289,6 +289,16 @@ fn zero_threads_are_refused() {
     assert!(o.status.success(), "{}", text(&o));
 }
 
+/// A child process killed when the test ends, even by a failed assertion.
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
 /// The lines a child writes to stderr, until one contains `want` (or 120 s pass).
 fn wait_for_stderr(child: &mut Child, want: &str) -> String {
     let stderr = child.stderr.take().unwrap();
@@ -348,7 +358,13 @@ fn one_process_at_a_time_writes_a_render_folder() {
         "--out",
         out.to_str().unwrap(),
     ];
-    let mut first = command(&args).stderr(Stdio::null()).spawn().unwrap();
+    let mut first = Killed(
+        command(&args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
     let start = Instant::now();
     while !out.join("scene.json").exists() && start.elapsed() < Duration::from_secs(120) {
         std::thread::sleep(Duration::from_millis(50));
@@ -356,27 +372,32 @@ fn one_process_at_a_time_writes_a_render_folder() {
     assert!(out.join("scene.json").exists(), "the first render started");
     let record = std::fs::read_to_string(&lock_file).unwrap();
     assert!(
-        record.contains(&format!("pid = {}", first.id())),
+        record.contains(&format!("pid = {}", first.0.id())),
         "{record}"
     );
 
     let second = deepfoids(&args);
-    let held = format!("is in use by PID {} on host", first.id());
+    let held = format!("is in use by PID {} on host", first.0.id());
     assert_refused(&second, &held);
     assert!(text(&second).contains("wait for it to finish or stop it"));
     let sim = on_seabream(None, "simulate", "0.2", &out).output().unwrap();
     assert_refused(&sim, &held);
     assert!(!out.join("trajectories.csv").exists());
 
-    first.kill().unwrap(); // SIGKILL: no destructor runs, the lock file stays
-    first.wait().unwrap();
+    first.0.kill().unwrap(); // SIGKILL: no destructor runs, the lock file stays
+    first.0.wait().unwrap();
     assert!(lock_file.exists(), "a killed process leaves its lock file");
-    let mut third = command(&args).stderr(Stdio::piped()).spawn().unwrap();
-    let said = wait_for_stderr(&mut third, "taking the lock over");
-    third.kill().unwrap();
-    third.wait().unwrap();
+    let mut third = Killed(
+        command(&args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let said = wait_for_stderr(&mut third.0, "taking the lock over");
+    drop(third);
     assert!(
-        said.contains(&format!("was locked by PID {} on host", first.id()))
+        said.contains(&format!("was locked by PID {} on host", first.0.id()))
             && said.contains("which ended without releasing it; taking the lock over"),
         "{said}"
     );
