@@ -436,6 +436,7 @@ impl SiteConfig {
 }
 
 /// Cage geometry (SPEC §1). The surface is `y = 0`, the bottom `y = −height`.
+/// Every dimension is positive and at most [`crate::limits::MAX_CAGE_M`] (1 km).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "shape", rename_all = "lowercase", deny_unknown_fields)]
 pub enum CageConfig {
@@ -474,7 +475,7 @@ pub struct GroupConfig {
     /// Size class of that species; default `regular`.
     #[serde(default = "default_size_class")]
     pub size_class: String,
-    /// Number of fish (≥ 1).
+    /// Number of fish, 1 to [`crate::limits::MAX_FISH`] (200,000; also in total).
     pub count: usize,
     /// Body scale override; default: the size class' `body_scale`.
     #[serde(default)]
