@@ -757,12 +757,11 @@ pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, Confi
         .and_then(|f| f.take(max + 1).read_to_end(&mut bytes))
         .map_err(io)?;
     if bytes.len() as u64 > max {
-        return Err(ConfigError::Limit {
+        return Err(ConfigError::Parse {
             path: path.to_path_buf(),
-            field: "the file's size".into(),
-            value: format!("more than {max} bytes"),
-            above: true,
-            limit: format!("{max} bytes for a configuration file"),
+            message: format!(
+                "the file is larger than {max} bytes, the limit of a configuration file"
+            ),
         });
     }
     let text = String::from_utf8(bytes).map_err(|e| {

@@ -198,7 +198,7 @@ fn a_config_file_over_a_mebibyte_is_not_read() {
     let e = scene_plus_err("huge", &format!("# {}", "x".repeat(2 << 20)));
     assert!(
         e.contains(
-            "seabream_default.toml: the file's size = more than 1048576 bytes is above the limit"
+            "seabream_default.toml: the file is larger than 1048576 bytes, the limit of a configuration file"
         ),
         "{e}"
     );
