@@ -1,9 +1,8 @@
-//! ONNX export of trained policies (Unity ML-Agents' interface) and an ONNX
-//! policy that drives scenes through tract.
+//! Running exported policies: an ONNX policy that drives scenes through tract
+//! (pure-Rust ONNX runtime). The exporter itself lives in
+//! `deepfoids_learn::onnx` (re-exported here).
 
-pub mod export;
-pub mod proto;
 pub mod runtime;
 
-pub use export::{Head, Metadata, export_actor, export_policy};
+pub use deepfoids_learn::onnx::{Head, Metadata, OPSET, export, export_policy, proto};
 pub use runtime::{OnnxPolicy, check_species};
