@@ -188,28 +188,30 @@ impl Body {
     /// The weights of several bodies' encoders for the fused forward.
     pub fn encoder_pack(bodies: &[&Body]) -> EncoderPack {
         let k = bodies.len();
-        let mut pack = EncoderPack {
-            k,
-            hidden: bodies[0].hidden(),
-            slope: bodies[0].leaky_slope as f32,
-            w1: Vec::with_capacity(C1 * k * PATCH1),
-            b1: Vec::with_capacity(C1 * k),
-            w2: vec![],
-            b2: vec![],
-            wfc: vec![],
-            bfc: vec![],
-        };
+        let mut w1 = Vec::with_capacity(C1 * k * PATCH1);
+        let mut b1 = Vec::with_capacity(C1 * k);
+        let (mut w2, mut b2, mut wfc, mut bfc) = (vec![], vec![], vec![], vec![]);
         for b in bodies {
             let bias = |c: &Conv2d| c.bias.as_ref().map_or_else(Vec::new, |p| to_vec(p.val()));
-            pack.w1.extend(to_vec(b.conv1.weight.val()));
-            pack.b1.extend(bias(&b.conv1));
-            pack.w2.push(to_vec(b.conv2.weight.val()));
-            pack.b2.push(bias(&b.conv2));
+            w1.extend(to_vec(b.conv1.weight.val()));
+            b1.extend(bias(&b.conv1));
+            w2.push(to_vec(b.conv2.weight.val()));
+            b2.push(bias(&b.conv2));
             let fc = dense_pack(&b.fc_grid);
-            pack.wfc.push(fc.w);
-            pack.bfc.push(fc.b);
+            wfc.push(fc.w);
+            bfc.push(fc.b);
         }
-        pack
+        EncoderPack::new(
+            k,
+            bodies[0].hidden(),
+            bodies[0].leaky_slope as f32,
+            w1,
+            b1,
+            w2,
+            b2,
+            wfc,
+            bfc,
+        )
     }
 
     /// This body's trunk and `head` for the fused forward.

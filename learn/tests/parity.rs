@@ -93,6 +93,13 @@ fn grads_of(b: &Body, g: &burn::tensor::Gradients) -> Vec<(&'static str, Vec<f32
 /// and a partial one, sub-chunks of 16 and a partial one.
 #[test]
 fn encoder_matches_burn_layers() {
+    // Conv 1 as im2col + GEMM (0), and on the non-zeros only (1).
+    for sparse_below in [0.0, 1.0] {
+        encoder_case(sparse_below);
+    }
+}
+
+fn encoder_case(sparse_below: f32) {
     let dev = Device::flex().autodiff();
     let b = body(&dev, 0);
     let n = 70;
@@ -106,8 +113,12 @@ fn encoder_matches_burn_layers() {
         fc: &b.fc_grid,
         slope: 0.01,
     };
-    let out_k = deepfoids_learn::kernels::ops::encode(&[layers], &Grids::Dense(x_k.clone()))
-        .expect("the encoder kernel runs on Flex with autodiff");
+    let out_k = deepfoids_learn::kernels::ops::encode_with(
+        &[layers],
+        &Grids::Dense(x_k.clone()),
+        sparse_below,
+    )
+    .expect("the encoder kernel runs on Flex with autodiff");
     let out_r = b.encode_reference(x_r.clone());
     assert_eq!(out_k.dims(), [n, 128]);
     assert_close("output", &to_vec(out_r.clone()), &to_vec(out_k.clone()));
@@ -129,12 +140,35 @@ fn encoder_matches_burn_layers() {
 /// dequantised floats.
 #[test]
 fn two_encoders_on_compact_grids_match_burn_layers() {
+    for sparse_below in [0.0, 1.0] {
+        two_encoders_case(sparse_below);
+    }
+}
+
+fn two_encoders_case(sparse_below: f32) {
     let dev = Device::flex().autodiff();
     let (a, c) = (body(&dev, 0), body(&dev, 3));
     let n = 33;
     let compact = CompactGrids::from_dense(&sensor_like(n, 2));
     let dense = compact.to_dense();
-    let outs = Body::encode_many(&[&a, &c], &Grids::Compact(Arc::new(compact)));
+    fn layers(m: &Body) -> deepfoids_learn::kernels::ops::EncoderLayers<'_> {
+        deepfoids_learn::kernels::ops::EncoderLayers {
+            conv1: &m.conv1,
+            conv2: &m.conv2,
+            fc: &m.fc_grid,
+            slope: 0.01,
+        }
+    }
+    let both = deepfoids_learn::kernels::ops::encode_with(
+        &[layers(&a), layers(&c)],
+        &Grids::Compact(Arc::new(compact)),
+        sparse_below,
+    )
+    .expect("the encoder kernel runs on Flex with autodiff");
+    let outs = vec![
+        both.clone().slice([0..n, 0..128]),
+        both.slice([0..n, 128..256]),
+    ];
     let x = tensor4(dense, n, &dev);
     let refs = [a.encode_reference(x.clone()), c.encode_reference(x)];
     let mut loss_k = None;

@@ -5,7 +5,8 @@
 //! threads.
 //!
 //! * [`encoder`] and [`dense`]: the arithmetic on flat slices, one chunk of
-//!   samples at a time;
+//!   samples at a time; conv 1 as im2col + GEMM, or on the non-zero inputs
+//!   only ([`sparse`]) when the grids are sparse, as the sensor's are;
 //! * [`ops`]: the same as Burn operations with a hand-written backward,
 //!   registered in Burn's autodiff graph (custom ops on the Flex backend);
 //! * [`infer`]: a fused forward without autodiff for acting (rollouts,
@@ -23,6 +24,7 @@ pub mod dense;
 pub mod encoder;
 pub mod infer;
 pub mod ops;
+pub mod sparse;
 
 use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
 

@@ -200,6 +200,16 @@ impl<const N: usize> Backward<Flex, N> for EncoderBackward<N> {
 /// body `b` in columns `b·hidden..(b + 1)·hidden`. `None` unless every tensor
 /// is on the Flex backend (with or without autodiff).
 pub fn encode(bodies: &[EncoderLayers<'_>], grids: &Grids) -> Option<Tensor<2>> {
+    encode_with(bodies, grids, super::encoder::SPARSE_BELOW)
+}
+
+/// [`encode`] with conv 1 on the non-zeros when at most `sparse_below` of a
+/// chunk's inputs is non-zero (0: always im2col + GEMM; 1: always sparse).
+pub fn encode_with(
+    bodies: &[EncoderLayers<'_>],
+    grids: &Grids,
+    sparse_below: f32,
+) -> Option<Tensor<2>> {
     let k = bodies.len();
     let n = grids.len();
     let hidden = bodies.first()?.fc.weight.dims()[1];
@@ -215,26 +225,20 @@ pub fn encode(bodies: &[EncoderLayers<'_>], grids: &Grids) -> Option<Tensor<2>> 
     }
     let (prims, tracked) = prims(inputs)?;
     let vals: Vec<Cow<'_, [f32]>> = prims.iter().map(|p| values(p.flex())).collect();
-    let mut pack = EncoderPack {
-        k,
-        hidden,
-        slope: bodies[0].slope,
-        w1: Vec::with_capacity(C1 * k * PATCH1),
-        b1: Vec::with_capacity(C1 * k),
-        w2: vec![],
-        b2: vec![],
-        wfc: vec![],
-        bfc: vec![],
-    };
+    let mut w1 = Vec::with_capacity(C1 * k * PATCH1);
+    let mut b1 = Vec::with_capacity(C1 * k);
+    let (mut w2, mut b2, mut wfc, mut bfc) = (vec![], vec![], vec![], vec![]);
     for b in 0..k {
         let v = |i: usize| vals[1 + 6 * b + i].to_vec();
-        pack.w1.extend_from_slice(&vals[1 + 6 * b]);
-        pack.b1.extend_from_slice(&vals[2 + 6 * b]);
-        pack.w2.push(v(2));
-        pack.b2.push(v(3));
-        pack.wfc.push(v(4));
-        pack.bfc.push(v(5));
+        w1.extend_from_slice(&vals[1 + 6 * b]);
+        b1.extend_from_slice(&vals[2 + 6 * b]);
+        w2.push(v(2));
+        b2.push(v(3));
+        wfc.push(v(4));
+        bfc.push(v(5));
     }
+    let mut pack = EncoderPack::new(k, hidden, bodies[0].slope, w1, b1, w2, b2, wfc, bfc);
+    pack.sparse_below = sparse_below;
     let grid_data = match grids {
         Grids::Dense(_) => {
             let t = prims[0].flex();
