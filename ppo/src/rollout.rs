@@ -45,6 +45,23 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
+    /// An empty trajectory with room for exactly `steps` decisions: growing
+    /// by doubling would leave up to half of every frame buffer unused
+    /// (measured on `coho_default`: 331 MB allocated against 180 MB reserved exactly).
+    pub fn with_capacity(steps: usize) -> Self {
+        Self {
+            frames: Vec::with_capacity((STACK - 1 + steps) * FRAME_BYTES),
+            vectors: Vec::with_capacity(steps * VECTOR_OBS),
+            actions: Vec::with_capacity(steps * ACTIONS),
+            logprobs: Vec::with_capacity(steps),
+            values: Vec::with_capacity(steps),
+            rewards: Vec::with_capacity(steps),
+            stops: Vec::with_capacity(steps),
+            advantages: Vec::with_capacity(steps),
+            returns: Vec::with_capacity(steps),
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.values.len()
     }
@@ -228,6 +245,8 @@ impl Buffer {
 /// Every agent's open trajectory and the buffer of closed ones.
 pub struct Rollout {
     pub open: Vec<Trajectory>,
+    /// The most decisions a trajectory holds (room reserved for each).
+    steps: usize,
     pub buffer: Buffer,
     spare: Vec<Trajectory>,
     /// The most bytes held at once (capacity), measured at updates.
@@ -235,9 +254,11 @@ pub struct Rollout {
 }
 
 impl Rollout {
-    pub fn new(agents: usize) -> Self {
+    /// Open trajectories for `agents`, each of at most `steps` decisions.
+    pub fn new(agents: usize, steps: usize) -> Self {
         Self {
-            open: vec![Trajectory::default(); agents],
+            open: (0..agents).map(|_| Trajectory::with_capacity(steps)).collect(),
+            steps,
             buffer: Buffer::default(),
             spare: vec![],
             peak_bytes: 0,
@@ -246,7 +267,10 @@ impl Rollout {
 
     /// Close agent `a`'s trajectory: GAE with `next_value`, into the buffer.
     pub fn close(&mut self, a: usize, next_value: f32, gamma: f32, lambda: f32) {
-        let fresh = self.spare.pop().unwrap_or_default();
+        let fresh = self
+            .spare
+            .pop()
+            .unwrap_or_else(|| Trajectory::with_capacity(self.steps));
         let mut t = std::mem::replace(&mut self.open[a], fresh);
         t.finish(next_value, gamma, lambda);
         self.buffer.push(t);

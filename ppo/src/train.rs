@@ -229,6 +229,12 @@ impl PpoLearner {
         state: PpoState,
     ) -> Self {
         let n = ctx.info.count;
+        // The longest a trajectory gets: time_horizon, or the synchronous
+        // scheme's cut every ceil(buffer_size / agents) decisions.
+        let steps = match cfg.rollout {
+            RolloutScheme::MlAgents => cfg.time_horizon,
+            RolloutScheme::Synchronous => cfg.time_horizon.min(cfg.buffer_size.div_ceil(n)),
+        };
         Self {
             net: model.infer_net(),
             log_std: model.log_std_values(),
@@ -239,7 +245,7 @@ impl PpoLearner {
             n,
             model,
             optim,
-            rollout: Rollout::new(n),
+            rollout: Rollout::new(n, steps),
             pending: false,
             since_update: 0,
             discounted: vec![0.0; n],
