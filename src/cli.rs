@@ -44,6 +44,8 @@ pub enum Command {
     Compare(CompareArgs),
     /// Render a labelled image dataset (YOLO, COCO, masks) of a scene driven by a policy
     Render(commands::render::RenderArgs),
+    /// Watch a school: one self-contained HTML replay (3D, scrub, follow a fish, P/M), and GIF clips
+    Replay(commands::replay::ReplayArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -65,7 +67,7 @@ pub struct SceneArgs {
     pub phase: Phase,
 }
 
-fn parse_phase(s: &str) -> Result<Phase, String> {
+pub(crate) fn parse_phase(s: &str) -> Result<Phase, String> {
     s.parse()
 }
 
@@ -73,7 +75,7 @@ fn parse_phase(s: &str) -> Result<Phase, String> {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`, `foids`, `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `random`, `foids`, `foids_table1` (Table 1 as published), `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "random")]
     pub policy: String,
     #[command(flatten)]
@@ -105,17 +107,26 @@ fn parse_backend(s: &str) -> Result<deepfoids_learn::Backend, String> {
 pub struct EvalArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
-    /// Simulated seconds
+    /// Simulated seconds recorded
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
+    /// Simulated seconds run before recording (the school settles from its random start)
+    #[arg(long, default_value_t = 0.0)]
+    pub warmup: f64,
     /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Also write replay.html (see `deepfoids replay`) next to the plots
+    #[arg(long)]
+    pub replay: bool,
+    /// Frames per simulated second stored in replay.html (the viewer interpolates between them)
+    #[arg(long, default_value_t = 5.0, value_name = "FPS")]
+    pub replay_fps: f64,
 }
 
 /// The training algorithm.
@@ -347,6 +358,7 @@ pub fn run() -> Result<()> {
             what: BenchCommand::Policy(a),
         }) => commands::bench::policy(&a),
         Some(Command::Render(a)) => commands::render::run(&dirs, &a),
+        Some(Command::Replay(a)) => commands::replay::run(&dirs, &a),
         Some(Command::Bench {
             what: BenchCommand::Render(a),
         }) => commands::render::bench(&dirs, &a),

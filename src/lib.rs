@@ -3,6 +3,7 @@
 //! crate parses arguments, drives the loops, and writes files and plots.
 
 pub mod cli;
+pub mod clip;
 pub mod commands;
 pub mod io;
 pub mod plot;

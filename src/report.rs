@@ -1,14 +1,15 @@
 //! Evaluating a school and writing what `eval` reports: `metrics.csv`,
 //! `summary.json`, and the P/M, depth and trajectory plots.
 
+use crate::cli::{PolicyArgs, SceneArgs};
 use crate::io::{AtomicFile, write_atomic};
 use crate::plot::{FONT, pe, save_png};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
-use deepfoids_env::policy::action_buffers;
+use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{Env, Policy};
 use plotters::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
@@ -28,14 +29,22 @@ pub struct Evaluation {
     pub wall_seconds: f64,
 }
 
-/// Run `env` (fresh from `Env::new`) with `policy` for `seconds`, sampling every tick.
+/// Run `env` (fresh from `Env::new`) with `policy` for `warmup` simulated
+/// seconds unrecorded, then for `seconds`, sampling every tick;
+/// `observe(env, tick, ticks)` sees the env when recording starts (tick 0)
+/// and after every recorded step (progress bars, replay recording).
 pub fn evaluate(
     env: &mut Env,
     policy: &mut dyn Policy,
+    warmup: f64,
     seconds: f64,
-    mut progress: impl FnMut(u64, u64),
+    mut observe: impl FnMut(&Env, u64, u64),
 ) -> Result<Evaluation> {
     let mut actions = action_buffers(env);
+    for _ in 0..(warmup / env.tick_seconds()).round().max(0.0) as u64 {
+        act_and_step(policy, env, &mut actions)?;
+    }
+    let t0 = env.output().time;
     let ticks = (seconds / env.tick_seconds()).round().max(1.0) as u64;
     let n = env.world().len();
     let tracked: Vec<usize> = (0..TRACKED.min(n))
@@ -55,22 +64,20 @@ pub fn evaluate(
     };
     recorder.sample(env.output());
     tracks.push(snapshot(env));
+    observe(env, 0, ticks);
     let start = Instant::now();
     for t in 0..ticks {
-        policy
-            .act(env, &mut actions)
-            .map_err(|e| anyhow::anyhow!("policy {}: {e}", policy.name()))?;
-        let out = env.step(&actions)?;
+        let out = act_and_step(policy, env, &mut actions)?;
         recorder.count(out);
         recorder.sample(out);
         tracks.push(snapshot(env));
-        progress(t + 1, ticks);
+        observe(env, t + 1, ticks);
     }
     Ok(Evaluation {
         recorder,
         tracks,
         tracked,
-        seconds: env.output().time,
+        seconds: env.output().time - t0,
         wall_seconds: start.elapsed().as_secs_f64(),
     })
 }
@@ -83,9 +90,76 @@ pub struct EvalMeta<'a> {
     pub seed: u64,
     pub phase: &'a str,
     pub deterministic: bool,
+    /// Simulated seconds run before recording.
+    pub warmup: f64,
     pub seconds: f64,
     pub wall_seconds: f64,
     pub ticks_per_second: f64,
+    /// How to run this evaluation again (`replay --from` does).
+    pub rerun: RunArgs,
+}
+
+/// The command-line values that reproduce a run's school exactly (seeded
+/// runs are deterministic): recorded in `summary.json` by `eval` and in
+/// `simulate.json` by `simulate`, read back by `replay --from`. (Files
+/// written when acting had a `--backend` hold a `backend` key too, ignored:
+/// trained policies now act on the hand-written kernels.)
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunArgs {
+    /// `--scene` as given (an id or a path).
+    pub scene: String,
+    pub phase: String,
+    pub seed: u64,
+    /// `--policy` as given (a baseline name, a run folder or a `.onnx` file).
+    pub policy: String,
+    pub checkpoint: Option<u64>,
+    pub stochastic: bool,
+    /// Simulated seconds run before recording (absent in files written
+    /// before `--warmup` existed: 0).
+    #[serde(default)]
+    pub warmup: f64,
+    /// Simulated seconds.
+    pub seconds: f64,
+}
+
+impl RunArgs {
+    /// The values of `scene` and `policy` options as the commands parse them.
+    pub fn new(
+        scene: &SceneArgs,
+        policy: &str,
+        opts: &PolicyArgs,
+        warmup: f64,
+        seconds: f64,
+    ) -> Self {
+        Self {
+            scene: scene.scene.clone(),
+            phase: scene.phase.as_str().to_string(),
+            seed: scene.seed,
+            policy: policy.to_string(),
+            checkpoint: opts.checkpoint,
+            stochastic: opts.stochastic,
+            warmup,
+            seconds,
+        }
+    }
+
+    /// Back to the options, for loading the scene and policy again.
+    pub fn options(&self) -> Result<(SceneArgs, PolicyArgs)> {
+        Ok((
+            SceneArgs {
+                scene: self.scene.clone(),
+                seed: self.seed,
+                phase: self
+                    .phase
+                    .parse()
+                    .map_err(|e| anyhow::anyhow!("phase `{}`: {e}", self.phase))?,
+            },
+            PolicyArgs {
+                checkpoint: self.checkpoint,
+                stochastic: self.stochastic,
+            },
+        ))
+    }
 }
 
 /// Write `metrics.csv`, `summary.json`, `pm.png`, `depth.png` and `trajectories.png` to `dir`.
@@ -152,11 +226,30 @@ fn write_csv(path: &Path, eval: &Evaluation) -> Result<()> {
     Ok(())
 }
 
+/// The share of time in each state, e.g. `swarm 6 %, milling 74 %, …`.
+pub fn state_shares(s: &Summary) -> String {
+    s.state_share
+        .iter()
+        .map(|(st, x)| format!("{} {:.0} %", st.as_str(), 100.0 * x))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Print the short table `eval` shows.
 pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
     println!(
-        "{} · policy {} · seed {} · {:.0} simulated s in {:.1} s wall ({:.0} ticks/s)",
-        meta.scene, meta.policy, meta.seed, meta.seconds, meta.wall_seconds, meta.ticks_per_second
+        "{} · policy {} · seed {} · {:.0} simulated s{} in {:.1} s wall ({:.0} ticks/s)",
+        meta.scene,
+        meta.policy,
+        meta.seed,
+        meta.seconds,
+        if meta.warmup > 0.0 {
+            format!(" after {:.0} s warm-up", meta.warmup)
+        } else {
+            String::new()
+        },
+        meta.wall_seconds,
+        meta.ticks_per_second
     );
     println!(
         "P {:.3} ± {:.3}   M {:.3} ± {:.3}   state: {} ({})",
@@ -165,11 +258,7 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
         s.m_mean,
         s.m_std,
         s.dominant_state.as_str(),
-        s.state_share
-            .iter()
-            .map(|(st, x)| format!("{} {:.0} %", st.as_str(), 100.0 * x))
-            .collect::<Vec<_>>()
-            .join(", ")
+        state_shares(s)
     );
     println!(
         "nearest neighbour {:.2} BL (5th pct {:.2}) · speed {:.2} BL/s · collisions per fish-hour: boundary {:.1}, neighbour {:.1} · reward/decision {:.3}",

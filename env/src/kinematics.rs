@@ -84,6 +84,8 @@ pub fn turn(f: Vec3, roll: f32, yaw: f32, pitch: f32, roll_max: f32) -> (Vec3, f
 /// What a decision asks of a fish.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Decision {
+    /// The desired velocity at the end of the decision (m/s).
+    pub target: Vec3,
     /// Velocity change to add at each of the k physics steps (m/s), `Δv_f / k`.
     pub dv_step: Vec3,
     /// Roll after the turn (rad).
@@ -94,7 +96,9 @@ pub struct Decision {
 ///
 /// * `action`: `[a0, a1, a2]`, clipped to [−1, 1];
 /// * `heading`, `roll`, `speed` (m/s): the current state;
-/// * `bl` (m), `max_delta_speed_bl` and `max_speed_bl` (BL/s), `max_turn` and `roll_max` (rad);
+/// * `bl` (m), `max_delta_speed_bl` (BL/s), `max_turn` and `roll_max` (rad);
+/// * `speed_range_bl`: the speed clamp `[min, max]` (BL/s) — the species'
+///   schooling range (SPEC §4, Table 4.3), whose lower bound is a floor;
 /// * `k`: physics steps per decision.
 #[allow(clippy::too_many_arguments)]
 pub fn decide(
@@ -104,39 +108,40 @@ pub fn decide(
     speed: f32,
     bl: f32,
     max_delta_speed_bl: f32,
-    max_speed_bl: f32,
+    speed_range_bl: [f32; 2],
     max_turn: f32,
     roll_max: f32,
     k: usize,
 ) -> Decision {
     let [a0, a1, a2] = action.map(|a| a.clamp(-1.0, 1.0));
-    let target_speed = (speed + a0 * max_delta_speed_bl * bl).clamp(0.0, max_speed_bl * bl);
+    let target_speed = (speed + a0 * max_delta_speed_bl * bl)
+        .clamp(speed_range_bl[0] * bl, speed_range_bl[1] * bl);
     let (f_new, roll_new) = turn(heading, roll, a2 * max_turn, a1 * max_turn, roll_max);
-    let dv = target_speed * f_new - speed * heading;
+    let target = target_speed * f_new;
     Decision {
-        dv_step: dv / k as f32,
+        target,
+        dv_step: (target - speed * heading) / k as f32,
         roll: roll_new,
     }
 }
 
 /// One physics step of Eq. 4.4: `v += Δv_f/k + (Δv_light + Δv_temp)·BL/k`, the
-/// speed clamped to `[0, max_speed]` (m/s); the fish then faces its velocity
-/// (the heading is kept if the speed is zero). Returns `(heading, speed)`.
+/// speed clamped to `speed_range = [min, max]` (m/s); the fish then faces its
+/// velocity (the heading is kept if the velocity vanishes). Returns `(heading, speed)`.
 #[inline]
 pub fn integrate_velocity(
     heading: Vec3,
     speed: f32,
     dv_step: Vec3,
     vertical_step: f32,
-    max_speed: f32,
+    speed_range: [f32; 2],
 ) -> (Vec3, f32) {
     let v = speed * heading + dv_step + Vec3::new(0.0, vertical_step, 0.0);
     let s = v.length();
-    if s > 1e-9 {
-        (v / s, s.min(max_speed))
-    } else {
-        (heading, 0.0)
-    }
+    // Below a micrometre per second (a model whose range reaches 0 braking to a
+    // halt) the direction is rounding noise: keep the heading.
+    let f = if s > 1e-6 { v / s } else { heading };
+    (f, s.clamp(speed_range[0], speed_range[1]))
 }
 
 #[cfg(test)]
@@ -190,7 +195,7 @@ mod tests {
             0.1,
             0.5,
             4.1,
-            1.9,
+            [0.2, 1.9],
             0.35,
             0.17,
             10,
@@ -200,20 +205,54 @@ mod tests {
             "{}",
             d.dv_step
         );
-        // Clipping: a0 = −7 acts as −1: target max(0.1 − 2.05, 0) = 0.
+        // Clipping: a0 = −7 acts as −1; from 0.5 m/s the target 0.5 − 2.05 < 0 is
+        // raised to the floor 0.2 BL/s × 0.5 = 0.1 m/s: Δv_f = −0.4 z, over 5 steps −0.08 z.
         let d = decide(
             [-7.0, 0.0, 0.0],
+            Vec3::Z,
+            0.0,
+            0.5,
+            0.5,
+            4.1,
+            [0.2, 1.9],
+            0.35,
+            0.17,
+            5,
+        );
+        assert!(
+            close(d.dv_step, Vec3::new(0.0, 0.0, -0.08)),
+            "{}",
+            d.dv_step
+        );
+    }
+
+    /// Regression (issue 11, "a policy can park its fish"): the speed never falls
+    /// below the floor. A fish at the floor 0.1 m/s (0.2 BL/s, BL 0.5) braking
+    /// by 0.05 m/s per step stays at 0.1 m/s heading on; one whose velocity is
+    /// cancelled exactly keeps its heading at 0.1 m/s; the maximum still clamps.
+    #[test]
+    fn speed_floor_holds_at_every_step() {
+        let range = [0.1, 0.95];
+        let (f, s) = integrate_velocity(Vec3::Z, 0.1, -0.05 * Vec3::Z, 0.0, range);
+        assert!(close(f, Vec3::Z) && (s - 0.1).abs() < 1e-7, "{f} {s}");
+        let (f, s) = integrate_velocity(Vec3::X, 0.1, -0.1 * Vec3::X, 0.0, range);
+        assert!(close(f, Vec3::X) && (s - 0.1).abs() < 1e-7, "{f} {s}");
+        let (_, s) = integrate_velocity(Vec3::Z, 0.9, 0.2 * Vec3::Z, 0.0, range);
+        assert!((s - 0.95).abs() < 1e-7, "{s}");
+        // At the floor, a full brake asks for nothing: the target is the floor itself.
+        let d = decide(
+            [-1.0, 0.0, 0.0],
             Vec3::Z,
             0.0,
             0.1,
             0.5,
             4.1,
-            1.9,
+            [0.2, 1.9],
             0.35,
             0.17,
-            5,
+            10,
         );
-        assert!(close(d.dv_step, Vec3::new(0.0, 0.0, -0.02)));
+        assert!(close(d.dv_step, Vec3::ZERO), "{}", d.dv_step);
     }
 
     /// After the k steps the velocity reaches the decision's target (no vertical push).
@@ -227,13 +266,13 @@ mod tests {
             s,
             0.34,
             4.1,
-            2.7,
+            [0.2, 2.7],
             20f32.to_radians(),
             0.17,
             5,
         );
         for _ in 0..5 {
-            (f, s) = integrate_velocity(f, s, d.dv_step, 0.0, 2.7 * 0.34);
+            (f, s) = integrate_velocity(f, s, d.dv_step, 0.0, [0.2 * 0.34, 2.7 * 0.34]);
         }
         assert!((s - (0.2 + 0.2 * 4.1 * 0.34)).abs() < 1e-5, "{s}");
         assert!((angle_deg(Vec3::Z, f) - 20.0).abs() < 1e-3);

@@ -8,6 +8,7 @@
 
 pub mod baselines;
 pub mod cage;
+mod chase;
 pub mod collide;
 pub mod config;
 pub mod env;
@@ -15,10 +16,15 @@ pub mod forces;
 pub mod io;
 pub mod kinematics;
 pub mod metrics;
+mod physics;
 pub mod policy;
+pub mod reward;
 pub mod rng;
 pub mod scene;
+mod sensing;
+mod state;
 pub mod sun;
+pub mod traits;
 pub mod world;
 
 pub use config::{ConfigDirs, ConfigError, Phase};
@@ -28,4 +34,5 @@ pub use env::{
 };
 pub use policy::{Policy, PolicyError, RandomPolicy};
 pub use scene::Scene;
+pub use traits::FishParams;
 pub use world::{Chase, World};

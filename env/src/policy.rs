@@ -1,9 +1,11 @@
 //! Who chooses the actions. A [`Policy`] fills one action buffer per behaviour
 //! for the behaviours that decided; scripted baselines and learned policies
-//! implement the same trait, so every evaluation drives the world the same way.
+//! implement the same trait, so every evaluation drives the world the same way
+//! ([`act_and_step`]).
 
-use crate::env::Env;
+use crate::env::{Env, EnvError, StepOutput};
 use crate::rng::{Purpose, Stream};
+use crate::traits::FishParams;
 
 /// Errors a policy may report.
 pub type PolicyError = Box<dyn std::error::Error + Send + Sync>;
@@ -16,6 +18,55 @@ pub trait Policy {
     /// Fill `actions[b]` (`n_agents × 3` floats in [−1, 1]) for every behaviour
     /// `b` with `env.awaiting(b)`, from `env.output()` and `env.world()`.
     fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError>;
+
+    /// The model parameters (speed range, light steepness) this policy's own
+    /// model gives fish `fish` for the decision it just chose, if they differ
+    /// from its species' (SPEC §4: the species' range, floor included, holds
+    /// for every fish unless a rule-based model publishes its own, as Foids
+    /// does for the night and for hovering). Called by [`act_and_step`] after
+    /// [`Policy::act`]. Default: `None` (the species' values).
+    fn fish_params(&self, _env: &Env, _fish: usize) -> Option<FishParams> {
+        None
+    }
+}
+
+/// Errors of [`act_and_step`].
+#[derive(Debug, thiserror::Error)]
+pub enum DriveError {
+    #[error("policy {policy}: {source}")]
+    Policy { policy: String, source: PolicyError },
+    #[error(transparent)]
+    Env(#[from] EnvError),
+}
+
+/// One tick driven by `policy`: its actions for the behaviours awaiting them,
+/// each of their fish's [`FishParams`] (the policy's, else the species'), then
+/// [`Env::step`].
+pub fn act_and_step<'e>(
+    policy: &mut dyn Policy,
+    env: &'e mut Env,
+    actions: &mut [Vec<f32>],
+) -> Result<&'e StepOutput, DriveError> {
+    policy
+        .act(env, actions)
+        .map_err(|source| DriveError::Policy {
+            policy: policy.name(),
+            source,
+        })?;
+    for b in 0..env.behaviours().len() {
+        if !env.awaiting(b) {
+            continue;
+        }
+        for i in env.behaviours()[b].range() {
+            let p = policy
+                .fish_params(env, i)
+                .unwrap_or_else(|| env.species_params(i));
+            if p != env.fish_params(i) {
+                env.set_fish_params(i, p)?;
+            }
+        }
+    }
+    Ok(env.step(actions)?)
 }
 
 /// Uniform random actions in [−1, 1]³, keyed by `(seed, fish, tick)`.

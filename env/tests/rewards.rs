@@ -70,8 +70,11 @@ fn neighbour_collision_term() {
     assert!(gap > 0.03, "gap {gap}");
 }
 
-/// Action (0.5, 0, 0.5): speed +0.5·4.1 = 2.05 BL/s over the decision, yaw 10°:
-/// r_E = −0.001 · 10 − 5 · 2.05 = −10.26. Level at ≥ 0.3 BL/s: r_M = +2.
+/// Action (0.5, 0, 0.5) from 0.2 BL/s heading +z: target 0.2 + 0.5·4.1 = 2.25
+/// BL/s turned 10° (yaw): Δv_f = 2.25·(sin 10°, 0, cos 10°) − (0, 0, 0.2) =
+/// (0.390708, 0, 2.015818), |Δv_f| = 2.053333 BL/s, spread over k = 5 steps:
+/// |Δv_a| = 0.410667 BL/s per step (no light or temperature push here).
+/// r_E = −0.001 · 10 − 5 · 0.410667 = −2.063333. Level at ≥ 0.3 BL/s: r_M = +2.
 #[test]
 fn energy_and_movement_terms() {
     let mut env = calm_env(scene("seabream_default", 1));
@@ -79,7 +82,7 @@ fn energy_and_movement_terms() {
     env.observe_now();
     let out = env.step(&[vec![0.5, 0.0, 0.5]]).unwrap();
     let t = out.behaviours[0].terms[0];
-    assert!(close(t[E], -10.26, 2e-3), "{t:?}");
+    assert!(close(t[E], -2.063333, 1e-4), "{t:?}");
     assert_eq!(t[M], 2.0);
     // Slow (v0 = 0.2 BL/s < 0.3) and level: r_M = 0.
     let mut env = calm_env(scene("seabream_default", 1));
@@ -88,6 +91,23 @@ fn energy_and_movement_terms() {
     let t = env.step(&[vec![0.0, 0.0, 0.0]]).unwrap().behaviours[0].terms[0];
     assert_eq!(t[M], 0.0);
     assert!(close(t[E], 0.0, 1e-6));
+}
+
+/// The light push is part of Eq. 4.4's Δv_a, so it costs energy too: a seabream
+/// at night (Δv_light = 5.75/25.75 = 0.223301 BL/s up), level at the floor with
+/// a zero action: |Δv_a| = 0.223301/5 = 0.0446602 BL/s per step; the body turns
+/// from (0, 0, 0.2) to (0, 0.223301, 0.2) BL/s, atan(1.116505) = 48.1511°:
+/// r_E = −0.001 · 48.1511 − 5 · 0.0446602 = −0.271452.
+#[test]
+fn environmental_push_costs_energy() {
+    let mut s = scene("seabream_default", 1);
+    s.clock.start_hours = 22.0;
+    s.physics.chase_probability = 0.0;
+    let mut env = deepfoids_env::Env::new(s, 1);
+    place(&mut env, 0, Vec3::new(0.0, -1.5, -0.5), Vec3::Z, 0.2);
+    env.observe_now();
+    let t = env.step(&zeros(&env)).unwrap().behaviours[0].terms[0];
+    assert!(close(t[E], -0.271452, 1e-4), "{t:?}");
 }
 
 /// Pitched 60° up (≥ θrt = 53°): r_M = −10.

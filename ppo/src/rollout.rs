@@ -257,7 +257,9 @@ impl Rollout {
     /// Open trajectories for `agents`, each of at most `steps` decisions.
     pub fn new(agents: usize, steps: usize) -> Self {
         Self {
-            open: (0..agents).map(|_| Trajectory::with_capacity(steps)).collect(),
+            open: (0..agents)
+                .map(|_| Trajectory::with_capacity(steps))
+                .collect(),
             steps,
             buffer: Buffer::default(),
             spare: vec![],

@@ -376,11 +376,13 @@ fn progress_lines_when_stdout_is_not_a_terminal() {
 
 /// Learning: ten seabream in the 3 m cube, 40,000 agent steps (2,048-transition
 /// buffers, 512-sample minibatches, ML-Agents' rollout). What PPO learns first,
-/// reliably, is to stop paying for its own jitter: random speed changes (energy
-/// term, ≈ −1.9 per decision at the start) and pitch drift (movement term: −10
-/// past 53°, +2 for level swimming at ≥ 0.3 BL/s). The sum of these two terms
-/// over the last three log points must beat the first two's by at least 1.0 per
-/// decision. Avoiding the net takes longer, so the total reward is not asserted.
+/// reliably, is to stop hitting the net: an untrained fish crosses it about once
+/// every 30 decisions (−300 each), and with the energy term measured per physics
+/// step (README, SPEC deviations) its own jitter costs little (≈ −0.3 per
+/// decision), so nothing else dominates the start. The mean reward per decision
+/// of the last three log points must beat the first two's by at least 3.0.
+/// Swimming faster than the floor comes later (the quickstart's 300,000 steps),
+/// so it is not asserted here.
 #[test]
 fn ppo_improves_over_the_untrained_policy() {
     let dir = temp("learn");
@@ -390,23 +392,12 @@ fn ppo_improves_over_the_untrained_policy() {
     cfg.checkpoint_every = 1_000_000;
     let out = run(&dir, "seabream_default", cfg, 40_000, 0, false, vec![]);
     assert!(out.curve.len() >= 10, "{} log points", out.curve.len());
-    let csv = std::fs::read_to_string(dir.join("scalars.csv")).unwrap();
-    let mut per_step: std::collections::BTreeMap<u64, f64> = Default::default();
-    for l in csv.lines().skip(1) {
-        let f: Vec<&str> = l.split(',').collect();
-        if f[2] == "Reward/energy" || f[2] == "Reward/movement" {
-            *per_step.entry(f[1].parse().unwrap()).or_default() += f[3].parse::<f64>().unwrap();
-        }
-    }
-    let v: Vec<f64> = per_step.values().copied().collect();
+    let v: Vec<f64> = out.curve.iter().map(|x| x.1).collect();
     let first = (v[0] + v[1]) / 2.0;
     let last = v[v.len() - 3..].iter().sum::<f64>() / 3.0;
-    eprintln!(
-        "energy + movement per decision: first {first:.3}, last three {last:.3}; reward curve {:?}",
-        out.curve
-    );
+    eprintln!("reward per decision: first {first:.3}, last three {last:.3}; curve {v:?}");
     assert!(
-        last > first + 1.0,
-        "energy + movement: first {first:.3}, last {last:.3}"
+        last > first + 3.0,
+        "reward per decision: first {first:.3}, last {last:.3}"
     );
 }

@@ -163,12 +163,13 @@ fn resume_restores_the_step_count_and_the_replay_buffer() {
 
 /// Learning: ten seabream in the 3 m cube, 8,000 agent steps, one update of 128
 /// transitions per decision after the first 500 steps. What SAC learns first is
-/// to stop paying for its own jitter: the energy term (random speed changes,
-/// ≈ −3.5 per decision for the untrained policy) must rise by at least 2.0 from
-/// the first two log points to the last two (a run went from −3.4 and −4.0 to
-/// 0.0 and 0.0, its boundary collisions from −5.4 and −5.1 to 0), and boundary
-/// collisions must not get worse. It does so by nearly stopping, nose tilted
-/// (the movement term falls to −8): a short run finds that local optimum first.
+/// to stop hitting the net: the boundary-collision term (≈ −6 to −8 per decision
+/// for the untrained policy: a crossing every ~40 decisions) averaged over the
+/// second half of the run must beat the first two log points by at least 2.0
+/// (seeds 0 and 1: +4.6 and +2.9). With the energy term measured per physics step
+/// (README, SPEC deviations) the untrained policy's jitter costs only ≈ −0.6 per
+/// decision, so it no longer dominates the start; the total reward of so short a
+/// run is too noisy to assert (seed 1 ends on a −15 log point).
 #[test]
 fn sac_improves_over_the_untrained_policy() {
     let dir = temp("learn");
@@ -189,16 +190,14 @@ fn sac_improves_over_the_untrained_policy() {
             })
             .collect()
     };
-    let ends = |v: &[f64]| ((v[0] + v[1]) / 2.0, (v[v.len() - 2] + v[v.len() - 1]) / 2.0);
-    let energy = term("Reward/energy");
     let boundary = term("Reward/boundary_collision");
-    eprintln!(
-        "energy {energy:?}\nboundary {boundary:?}\nreward {:?}",
-        out.curve
+    eprintln!("boundary {boundary:?}\nreward {:?}", out.curve);
+    let first = (boundary[0] + boundary[1]) / 2.0;
+    let half = &boundary[boundary.len() / 2..];
+    let later = half.iter().sum::<f64>() / half.len() as f64;
+    assert!(
+        later > first + 2.0,
+        "boundary collisions: first {first:.3}, second half {later:.3}"
     );
-    let (e0, e1) = ends(&energy);
-    assert!(e1 > e0 + 2.0, "energy: first {e0:.3}, last {e1:.3}");
-    let (b0, b1) = ends(&boundary);
-    assert!(b1 >= b0, "boundary collisions: first {b0:.3}, last {b1:.3}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -180,7 +180,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         for seed in 0..args.seeds {
             let mut env = Env::new(scene.clone(), seed);
             let mut policy = load_trained(&r.dir, None, &env, true, seed)?;
-            let eval = evaluate(&mut env, &mut policy, args.seconds, |_, _| {})?;
+            let eval = evaluate(&mut env, &mut policy, 0.0, args.seconds, |_, _, _| {})?;
             summaries.push(eval.recorder.summary(eval.seconds));
         }
         rows.push(average(&summaries));

@@ -2,14 +2,18 @@
 
 use super::{load_scene, make_policy};
 use crate::cli::EvalArgs;
-use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
+use crate::report::{EvalMeta, RunArgs, evaluate, print_table, write_outputs};
 use anyhow::{Result, bail};
 use deepfoids_env::{ConfigDirs, Env};
+use deepfoids_replay::EnvRecorder;
 use std::path::PathBuf;
 
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     if !(args.seconds > 0.0 && args.seconds.is_finite()) {
         bail!("--seconds must be a positive number, got {}", args.seconds);
+    }
+    if !(args.warmup >= 0.0 && args.warmup.is_finite()) {
+        bail!("--warmup must be a number ≥ 0, got {}", args.warmup);
     }
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
@@ -23,7 +27,30 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
             sa.seed
         ))
     });
-    let eval = evaluate(&mut env, policy.as_mut(), args.seconds, |_, _| {})?;
+    let info = args
+        .replay
+        .then(|| super::replay::info(&env, &policy.name(), "simulated by deepfoids eval", vec![]));
+    let mut recorder = None;
+    let mut record_error = None;
+    let eval = evaluate(
+        &mut env,
+        policy.as_mut(),
+        args.warmup,
+        args.seconds,
+        |env, tick, _| match (&info, recorder.as_mut()) {
+            (Some(info), None) if tick == 0 && record_error.is_none() => {
+                match EnvRecorder::new(env, info.clone(), args.replay_fps) {
+                    Ok(r) => recorder = Some(r),
+                    Err(e) => record_error = Some(e),
+                }
+            }
+            (_, Some(r)) => r.observe(env),
+            _ => {}
+        },
+    )?;
+    if let Some(e) = record_error {
+        return Err(e.into());
+    }
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
@@ -31,10 +58,18 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         policy: &name,
         seed: sa.seed,
         phase: sa.phase.as_str(),
-        deterministic: true,
+        deterministic: !args.policy_args.stochastic,
+        warmup: args.warmup,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
+        rerun: RunArgs::new(
+            sa,
+            &args.policy,
+            &args.policy_args,
+            args.warmup,
+            args.seconds,
+        ),
     };
     let summary = write_outputs(&out, &env, &eval, &meta)?;
     print_table(&meta, &summary);
@@ -42,5 +77,12 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         "wrote {}/{{metrics.csv, summary.json, pm.png, depth.png, trajectories.png}}",
         out.display()
     );
+    if let Some(r) = recorder {
+        let rec = r.finish(super::replay::curves(&eval));
+        let path = out.join("replay.html");
+        let size = super::replay::write_page(&path, &rec)?;
+        println!("{}", super::replay::describe(&path, &rec, &size));
+        super::replay::warn_if_large(&size);
+    }
     Ok(())
 }

@@ -18,7 +18,7 @@ use super::{load_scene, make_policy};
 use crate::cli::{PolicyArgs, SceneArgs};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use deepfoids_env::policy::action_buffers;
+use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
 use deepfoids_render::dataset::ImageFormat;
 use deepfoids_render::setup::{TailPhases, place_camera, poses, species_meshes};
@@ -147,10 +147,7 @@ impl Clip {
     fn step(&mut self, ticks: u64) -> Result<()> {
         let dt = self.env.tick_seconds() as f32;
         for _ in 0..ticks {
-            self.policy
-                .act(&self.env, &mut self.actions)
-                .map_err(|e| anyhow::anyhow!("policy {}: {e}", self.policy.name()))?;
-            self.env.step(&self.actions)?;
+            act_and_step(self.policy.as_mut(), &mut self.env, &mut self.actions)?;
             self.phases.advance(self.env.world(), dt);
         }
         Ok(())

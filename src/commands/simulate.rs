@@ -1,11 +1,13 @@
 //! `deepfoids simulate`: run a scene with a policy, write `trajectories.csv`
-//! (one row per fish per decision of the fastest species) and print a summary.
+//! (one row per fish per decision of the fastest species) and `simulate.json`
+//! (the options that made it, for `replay --from`), and print a summary.
 
 use super::{load_scene, make_policy};
 use crate::cli::SimulateArgs;
-use crate::io::AtomicFile;
+use crate::io::{AtomicFile, write_atomic};
+use crate::report::RunArgs;
 use anyhow::{Context, Result, bail};
-use deepfoids_env::policy::action_buffers;
+use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, StepOutput, TERM_NAMES};
 use std::io::Write;
 use std::path::PathBuf;
@@ -95,10 +97,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     let (mut speed_bl, mut depth, mut samples) = (0.0f64, 0.0f64, 0u64);
     let start = Instant::now();
     for _ in 0..ticks {
-        policy
-            .act(&env, &mut actions)
-            .map_err(|e| anyhow::anyhow!("policy {}: {e}", policy.name()))?;
-        let out = env.step(&actions)?;
+        let out = act_and_step(policy.as_mut(), &mut env, &mut actions)?;
         for (b, t) in tallies.iter_mut().enumerate() {
             t.add(out, b);
         }
@@ -116,6 +115,12 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     let wall = start.elapsed().as_secs_f64();
     csv.commit()
         .with_context(|| format!("writing {}", csv_path.display()))?;
+    // What `replay --from` needs to put the CSV back into its cage.
+    let rerun = RunArgs::new(sa, &args.policy, &args.policy_args, 0.0, args.seconds);
+    write_atomic(
+        out_dir.join("simulate.json"),
+        serde_json::to_string_pretty(&rerun)?.as_bytes(),
+    )?;
 
     let s = env.scene();
     let fish = env.world().len();

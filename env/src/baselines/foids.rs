@@ -1,7 +1,27 @@
 //! Foids (Ishiwaka et al. 2021, §4, Algorithm 1, Table 1): the improved Boids
 //! rules with distance terms, boundary avoidance with regular and front
 //! factors, day/night scaling, the control cycle of Eq. 8 and the two swimming
-//! modes. Parameters: `configs/baselines/foids.toml`.
+//! modes. Parameters: `configs/baselines/foids.toml` (the tuned default) and
+//! `configs/baselines/foids_table1.toml` (Table 1 as published).
+//!
+//! # Why the default is tuned
+//!
+//! Only the direction of the rules' sum `Δv_sum` matters once it exceeds the
+//! speed range (the speed is clamped to [0.2, 1.9] BL/s, the turn to 20° per
+//! decision), and with Table 1's weights separation (w_s = 30: up to
+//! 30 · max (3 − d)·d = 67.5 BL/s) and alignment (w_a = 12: ≈ 14 BL/s at
+//! schooling spacing) outweigh boundary avoidance (w_rb = w_fb = 1: at most
+//! (4 − 0)·(1 + 1) = 8 BL/s at the net) by an order of magnitude. Near a net all
+//! neighbours lie on the inner side, so separation points the fish into it:
+//! Table 1 gives 2,000–2,800 boundary collisions per fish-hour in the density
+//! scenes. Lifting the turn limit does not cure it (at 180° per decision,
+//! 650–830, and the school falls apart into a swarm, P ≈ 0.05). The default
+//! raises the two boundary weights to the separation's order — w_rb = 10,
+//! w_fb = 15, everything else as Table 1 — which keeps every school inside
+//! (≤ 5.3 per fish-hour in every single-species scene) at the price of a
+//! denser school: r_pref = 4 BL spans most of these small cages, so the
+//! regular factor, which points at the cage axis, also gathers the fish
+//! (README, *Baselines*, has the table).
 //!
 //! All lengths are in the deciding fish's body lengths (BL) and velocities in
 //! BL/s; the summed delta velocity `Δv_sum` (Eq. 8, without the light and
@@ -13,7 +33,7 @@ use super::{neighbour_grid, obstacle_deflection, steer};
 use crate::config::{ConfigError, read_toml};
 use crate::policy::{Policy, PolicyError};
 use crate::rng::{Purpose, Stream};
-use crate::{Env, World};
+use crate::{Env, FishParams, World};
 use deepfoids_sensors::Boundary;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -38,9 +58,9 @@ pub struct FoidsConfig {
     pub cohesion_weight: f32,
     /// Preferred distance to boundaries `r_pref` (BL). Table 1: 4.
     pub boundary_range: f32,
-    /// Regular boundary avoidance weight `w_rb` (BL). Table 1: 1.
+    /// Regular boundary avoidance weight `w_rb` (BL). Table 1: 1; default 10 (tuned, see the module docs).
     pub regular_boundary_weight: f32,
-    /// Front boundary avoidance weight `w_fb` (BL). Table 1: 1.
+    /// Front boundary avoidance weight `w_fb` (BL). Table 1: 1; default 15 (tuned).
     pub front_boundary_weight: f32,
     /// Multiplier of vertical boundary avoidance `m`. Table 1: 2.5.
     pub vertical_multiplier: f32,
@@ -58,6 +78,9 @@ pub struct FoidsConfig {
     pub hover_activeness: f32,
     /// Obstacle avoidance weight (BL/s); Foids has no obstacles, so the CS275 rule is used. Default 4.
     pub obstacle_weight: f32,
+    /// Light steepness `[I_lsteep, I_hsteep]` (PAR) of Eq. 6, applied by the
+    /// environment to Foids fish in place of DeepFoids' [−20, 1000]. Table 1: [−7, 409].
+    pub light_steep: [f32; 2],
 }
 
 impl Default for FoidsConfig {
@@ -70,8 +93,8 @@ impl Default for FoidsConfig {
             alignment_weight: 12.0,
             cohesion_weight: 0.1,
             boundary_range: 4.0,
-            regular_boundary_weight: 1.0,
-            front_boundary_weight: 1.0,
+            regular_boundary_weight: 10.0,
+            front_boundary_weight: 15.0,
             vertical_multiplier: 2.5,
             night_speed: [0.0, 0.4],
             hover_start: 0.01,
@@ -80,6 +103,7 @@ impl Default for FoidsConfig {
             depression_threshold_deg: 11.0,
             hover_activeness: 0.17,
             obstacle_weight: 4.0,
+            light_steep: [-7.0, 409.0],
         }
     }
 }
@@ -88,58 +112,88 @@ impl FoidsConfig {
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
         read_toml(path)
     }
+
+    /// Table 1 of the Foids paper as published (boundary weights 1 and 1).
+    pub fn table1() -> Self {
+        Self {
+            regular_boundary_weight: 1.0,
+            front_boundary_weight: 1.0,
+            ..Self::default()
+        }
+    }
 }
 
-/// Separation (Eq. 1): `w_s · mean_j (r_s − |d_ij|) d_ij` over neighbours with
-/// `|d_ij| < r_s`, `d_ij` pointing from neighbour `j` to the fish (BL).
-pub fn separation(me: Vec3, others: &[Vec3], range: f32, weight: f32) -> Vec3 {
-    let (mut sum, mut n) = (Vec3::ZERO, 0);
-    for &o in others {
-        let d = me - o;
+/// The sums of Eqs. 1–3 over every neighbour of one fish within the rules'
+/// ranges (lengths in BL, velocities in BL/s): the published rules average over
+/// all neighbours in range, so they are accumulated one neighbour at a time in
+/// a single pass (no list, no cap).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Neighbourhood {
+    separation: Vec3,
+    n_s: u32,
+    alignment: Vec3,
+    n_a: u32,
+    cohesion: Vec3,
+    n_c: u32,
+}
+
+impl Neighbourhood {
+    /// Add neighbour `(p, v)` of the fish at `me`, with the ranges `[r_s, r_a, r_c]`.
+    #[inline]
+    pub fn add(&mut self, me: Vec3, p: Vec3, v: Vec3, ranges: [f32; 3]) {
+        let d = me - p;
         let len = d.length();
-        if len < range {
-            sum += (range - len) * d;
-            n += 1;
+        if len < ranges[0] {
+            self.separation += (ranges[0] - len) * d;
+            self.n_s += 1;
+        }
+        if len < ranges[1] {
+            self.alignment += (ranges[1] - len) * v;
+            self.n_a += 1;
+        }
+        if len < ranges[2] {
+            self.cohesion += p;
+            self.n_c += 1;
         }
     }
-    if n == 0 {
-        Vec3::ZERO
-    } else {
-        weight * sum / n as f32
+
+    /// The sums over `others` (`(position, velocity)` pairs).
+    pub fn of(me: Vec3, others: &[(Vec3, Vec3)], ranges: [f32; 3]) -> Self {
+        let mut n = Self::default();
+        for &(p, v) in others {
+            n.add(me, p, v, ranges);
+        }
+        n
+    }
+
+    /// Separation (Eq. 1): `w_s · mean_j (r_s − |d_ij|) d_ij` over the `N_s`
+    /// neighbours with `|d_ij| < r_s`, `d_ij` pointing from neighbour `j` to the fish.
+    pub fn separation(&self, weight: f32) -> Vec3 {
+        mean_or_zero(self.separation, self.n_s) * weight
+    }
+
+    /// Alignment (Eq. 2): `w_a · (mean_j (r_a − |d_ij|) v_j − v_i)` over the
+    /// `N_a` neighbours within `r_a`.
+    pub fn alignment(&self, v: Vec3, weight: f32) -> Vec3 {
+        if self.n_a == 0 {
+            Vec3::ZERO
+        } else {
+            weight * (self.alignment / self.n_a as f32 - v)
+        }
+    }
+
+    /// Cohesion (Eq. 3): `w_c · (mean_j p_j − p_i)` over the `N_c` neighbours within `r_c`.
+    pub fn cohesion(&self, me: Vec3, weight: f32) -> Vec3 {
+        if self.n_c == 0 {
+            Vec3::ZERO
+        } else {
+            weight * (self.cohesion / self.n_c as f32 - me)
+        }
     }
 }
 
-/// Alignment (Eq. 2): `w_a · (mean_j (r_a − |d_ij|) v_j − v_i)` over neighbours within `r_a`.
-pub fn alignment(me: Vec3, v: Vec3, others: &[(Vec3, Vec3)], range: f32, weight: f32) -> Vec3 {
-    let (mut sum, mut n) = (Vec3::ZERO, 0);
-    for &(o, vo) in others {
-        let len = (me - o).length();
-        if len < range {
-            sum += (range - len) * vo;
-            n += 1;
-        }
-    }
-    if n == 0 {
-        Vec3::ZERO
-    } else {
-        weight * (sum / n as f32 - v)
-    }
-}
-
-/// Cohesion (Eq. 3): `w_c · (mean_j p_j − p_i)` over neighbours within `r_c`.
-pub fn cohesion(me: Vec3, others: &[Vec3], range: f32, weight: f32) -> Vec3 {
-    let (mut sum, mut n) = (Vec3::ZERO, 0);
-    for &o in others {
-        if (me - o).length() < range {
-            sum += o;
-            n += 1;
-        }
-    }
-    if n == 0 {
-        Vec3::ZERO
-    } else {
-        weight * (sum / n as f32 - me)
-    }
+fn mean_or_zero(sum: Vec3, n: u32) -> Vec3 {
+    if n == 0 { Vec3::ZERO } else { sum / n as f32 }
 }
 
 /// Boundary avoidance (Eq. 4), distances in BL. Walls: `max(r_pref − r, 0) ·
@@ -182,12 +236,28 @@ pub fn boundary(
     dv
 }
 
+/// A fish's swimming mode switch at this decision (Algorithm 1, §4.6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+enum Switch {
+    #[default]
+    None,
+    /// Rapid → hovering: `v`, the speed range and the alignment and cohesion
+    /// weights are multiplied by `H_active`.
+    ToHover,
+    /// Hovering → rapid: the same divided by `H_active`.
+    ToRapid,
+}
+
 /// The Foids school.
 pub struct Foids {
     pub config: FoidsConfig,
     pub seed: u64,
     /// Hovering fish (per fish); decided at the first decision, then switched per Algorithm 1.
     hovering: Vec<bool>,
+    /// The switch each fish made at its latest decision.
+    switched: Vec<Switch>,
+    /// Whether the latest decision was made at night (surface light 0).
+    night: bool,
     started: bool,
 }
 
@@ -197,6 +267,8 @@ impl Foids {
             config,
             seed,
             hovering: Vec::new(),
+            switched: Vec::new(),
+            night: false,
             started: false,
         }
     }
@@ -204,6 +276,49 @@ impl Foids {
     /// Whether fish `i` is hovering now.
     pub fn is_hovering(&self, i: usize) -> bool {
         self.hovering.get(i).copied().unwrap_or(false)
+    }
+
+    /// The speed range of fish `i` (BL/s): the species' by day, `night_speed`
+    /// at night, times `H_active` while hovering (§4.3, §4.6).
+    pub fn speed_range(&self, env: &Env, i: usize) -> [f32; 2] {
+        let base = if self.night {
+            self.config.night_speed
+        } else {
+            env.species_params(i).speed_bl
+        };
+        let h = if self.is_hovering(i) {
+            self.config.hover_activeness
+        } else {
+            1.0
+        };
+        [base[0] * h, base[1] * h]
+    }
+
+    /// Mode switches of the deciding fish of behaviour `b` (serial, seeded per
+    /// fish and tick): a hovering fish may switch to rapid mode with
+    /// probability `H_switch` per simulation step if it is in the upper half of
+    /// the cage or its elevation exceeds `θ_et`; a rapid one to hovering if it
+    /// is in the lower half or its depression exceeds `θ_dt`.
+    fn switch_modes(&mut self, env: &Env, b: usize) {
+        let (w, cfg, info) = (env.world(), &self.config, &env.behaviours()[b]);
+        let height = env.cage().height;
+        let tick = env.output().tick;
+        let p_switch = 1.0 - (1.0 - cfg.hover_switch).powi(info.steps_per_decision as i32);
+        for i in info.range() {
+            let pitch = crate::kinematics::pitch_deg(w.heading[i]);
+            let upper = -w.position[i].y < height / 2.0;
+            let u = Stream::new(self.seed, Purpose::Policy, i as u64, tick).uniform();
+            self.switched[i] = Switch::None;
+            if self.hovering[i] {
+                if (upper || pitch > cfg.elevation_threshold_deg) && u < p_switch {
+                    self.hovering[i] = false;
+                    self.switched[i] = Switch::ToRapid;
+                }
+            } else if (!upper || -pitch > cfg.depression_threshold_deg) && u < p_switch {
+                self.hovering[i] = true;
+                self.switched[i] = Switch::ToHover;
+            }
+        }
     }
 }
 
@@ -215,10 +330,8 @@ impl Policy for Foids {
     fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
         let w: &World = env.world();
         let n = w.len();
-        let cfg = &self.config;
-        let height = env.cage().height;
-        let tick = env.output().tick;
         if !self.started {
+            let (cfg, height) = (&self.config, env.cage().height);
             self.hovering = (0..n)
                 .map(|i| {
                     let lower = -w.position[i].y > height / 2.0;
@@ -227,9 +340,11 @@ impl Policy for Foids {
                             < cfg.hover_start
                 })
                 .collect();
+            self.switched = vec![Switch::None; n];
             self.started = true;
         }
-        let night = env.surface_light() <= 0.0;
+        self.night = env.surface_light() <= 0.0;
+        let cfg = &self.config;
         let max_range = cfg
             .separation_range
             .max(cfg.alignment_range)
@@ -241,104 +356,85 @@ impl Policy for Foids {
             if !env.awaiting(b) {
                 continue;
             }
+            self.switch_modes(env, b);
+            let this = &*self;
+            let cfg = &this.config;
             let species = &env.scene().behaviours[b].species;
-            let day = species.speed_bl;
-            // Day/night: at night speeds, weights and ranges shrink by s = night max / day max.
-            let s = if night {
-                cfg.night_speed[1] / day[1]
+            // Day/night: at night ranges and the alignment, cohesion and boundary
+            // weights shrink by s = night max speed / day max speed (§4.3).
+            let s = if this.night {
+                cfg.night_speed[1] / species.speed_bl[1]
             } else {
                 1.0
             };
-            let speed_range = if night { cfg.night_speed } else { day };
-            let switch = 1.0 - (1.0 - cfg.hover_switch).powi(info.steps_per_decision as i32);
+            let ranges = [
+                cfg.separation_range * s,
+                cfg.alignment_range * s,
+                cfg.cohesion_range * s,
+            ];
+            let reach = ranges[0].max(ranges[1]).max(ranges[2]);
             let range = info.range();
             let out = &mut actions[b];
             out.resize(info.count * 3, 0.0);
-            // Mode switches first (serial, seeded per fish and tick).
-            for i in range.clone() {
-                let pitch = crate::kinematics::pitch_deg(w.heading[i]);
-                let upper = -w.position[i].y < height / 2.0;
-                let u = Stream::new(self.seed, Purpose::Policy, i as u64, tick).uniform();
-                if self.hovering[i] {
-                    if (upper || pitch > cfg.elevation_threshold_deg) && u < switch {
-                        self.hovering[i] = false;
-                    }
-                } else if (!upper || -pitch > cfg.depression_threshold_deg) && u < switch {
-                    self.hovering[i] = true;
-                }
-            }
-            let hovering = &self.hovering;
             out.par_chunks_mut(3)
                 .enumerate()
                 .with_min_len(64)
                 .for_each(|(a, act)| {
                     let i = range.start + a;
                     let bl = w.bl[i];
-                    let hover = if hovering[i] {
+                    let h = if this.hovering[i] {
                         cfg.hover_activeness
                     } else {
                         1.0
                     };
+                    // A switch scales the current velocity itself (Algorithm 1).
+                    let v = w.velocity(i) / bl
+                        * match this.switched[i] {
+                            Switch::ToHover => cfg.hover_activeness,
+                            Switch::ToRapid => 1.0 / cfg.hover_activeness,
+                            Switch::None => 1.0,
+                        };
                     let me = w.position[i] / bl;
-                    let v = w.velocity(i) / bl;
-                    let (mut near, mut near_v) = ([Vec3::ZERO; 96], [(Vec3::ZERO, Vec3::ZERO); 96]);
-                    let mut k = 0;
-                    let reach = max_range * s * bl;
-                    grid.for_each_candidate(w.position[i], reach, |j, q| {
+                    let mut near = Neighbourhood::default();
+                    let reach_m = reach * bl;
+                    grid.for_each_candidate(w.position[i], reach_m, |j, q| {
                         if j != i
-                            && k < near.len()
-                            && q.truncate().distance_squared(w.position[i]) < reach * reach
+                            && q.truncate().distance_squared(w.position[i]) < reach_m * reach_m
                         {
-                            near[k] = q.truncate() / bl;
-                            near_v[k] = (near[k], w.velocity(j) / bl);
-                            k += 1;
+                            near.add(me, q.truncate() / bl, w.velocity(j) / bl, ranges);
                         }
                     });
-                    let dv = separation(
-                        me,
-                        &near[..k],
-                        cfg.separation_range * s,
-                        cfg.separation_weight,
-                    ) + alignment(
-                        me,
-                        v,
-                        &near_v[..k],
-                        cfg.alignment_range * s,
-                        cfg.alignment_weight * s * hover,
-                    ) + cohesion(
-                        me,
-                        &near[..k],
-                        cfg.cohesion_range * s,
-                        cfg.cohesion_weight * s * hover,
-                    ) + boundary(
-                        w.position[i],
-                        w.heading[i],
-                        bl,
-                        &env.cage().boundaries,
-                        cfg,
-                        s,
-                    ) + env
-                        .obstacles()
-                        .iter()
-                        .map(|o| {
-                            obstacle_deflection(
-                                w.position[i],
-                                w.heading[i],
-                                0.5 * bl,
-                                o,
-                                cfg.boundary_range * bl,
-                            ) * cfg.obstacle_weight
-                        })
-                        .sum::<Vec3>();
-                    let desired = (v + dv) * bl;
-                    let range_bl = [speed_range[0] * hover, speed_range[1] * hover];
+                    let dv = near.separation(cfg.separation_weight)
+                        + near.alignment(v, cfg.alignment_weight * s * h)
+                        + near.cohesion(me, cfg.cohesion_weight * s * h)
+                        + boundary(
+                            w.position[i],
+                            w.heading[i],
+                            bl,
+                            &env.cage().boundaries,
+                            cfg,
+                            s,
+                        )
+                        + env
+                            .obstacles()
+                            .iter()
+                            .map(|o| {
+                                obstacle_deflection(
+                                    w.position[i],
+                                    w.heading[i],
+                                    0.5 * bl,
+                                    o,
+                                    cfg.boundary_range * bl,
+                                ) * cfg.obstacle_weight
+                            })
+                            .sum::<Vec3>();
                     let action = steer(
                         w.heading[i],
                         w.roll[i],
                         w.speed[i],
                         bl,
-                        desired,
-                        range_bl,
+                        (v + dv) * bl,
+                        this.speed_range(env, i),
                         species.max_delta_speed_bl,
                         phys.max_turn_deg.to_radians(),
                     );
@@ -346,6 +442,14 @@ impl Policy for Foids {
                 });
         }
         Ok(())
+    }
+
+    /// Foids' own speed range (night, hovering) and Table 1's light steepness.
+    fn fish_params(&self, env: &Env, fish: usize) -> Option<FishParams> {
+        Some(FishParams {
+            speed_bl: self.speed_range(env, fish),
+            light_steep: self.config.light_steep,
+        })
     }
 }
 
@@ -357,12 +461,14 @@ mod tests {
         (a - b).length() < 1e-5
     }
 
+    const R3: [f32; 3] = [3.0, 3.0, 3.0];
+
     /// Two fish 1 BL apart along x: d = (−1, 0, 0) from the neighbour to me;
     /// Δv_s = 30 · (3 − 1) · (−1, 0, 0) = (−60, 0, 0).
     #[test]
     fn separation_two_fish() {
-        let dv = separation(Vec3::ZERO, &[Vec3::X], 3.0, 30.0);
-        assert!(close(dv, Vec3::new(-60.0, 0.0, 0.0)), "{dv}");
+        let n = Neighbourhood::of(Vec3::ZERO, &[(Vec3::X, Vec3::ZERO)], R3);
+        assert!(close(n.separation(30.0), Vec3::new(-60.0, 0.0, 0.0)));
     }
 
     /// Three fish: neighbours at +x (1 BL) and +z (2 BL):
@@ -370,12 +476,12 @@ mod tests {
     /// A fish beyond r_s does not count.
     #[test]
     fn separation_three_fish() {
-        let dv = separation(
-            Vec3::ZERO,
-            &[Vec3::X, Vec3::new(0.0, 0.0, 2.0), Vec3::new(5.0, 0.0, 0.0)],
-            3.0,
-            30.0,
-        );
+        let others = [
+            (Vec3::X, Vec3::ZERO),
+            (Vec3::new(0.0, 0.0, 2.0), Vec3::ZERO),
+            (Vec3::new(5.0, 0.0, 0.0), Vec3::ZERO),
+        ];
+        let dv = Neighbourhood::of(Vec3::ZERO, &others, R3).separation(30.0);
         assert!(close(dv, Vec3::new(-30.0, 0.0, -30.0)), "{dv}");
     }
 
@@ -388,7 +494,7 @@ mod tests {
             (Vec3::X, Vec3::Z),
             (Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.0, 2.0)),
         ];
-        let dv = alignment(Vec3::ZERO, Vec3::X, &others, 3.0, 12.0);
+        let dv = Neighbourhood::of(Vec3::ZERO, &others, R3).alignment(Vec3::X, 12.0);
         assert!(close(dv, Vec3::new(-12.0, 0.0, 24.0)), "{dv}");
     }
 
@@ -396,13 +502,25 @@ mod tests {
     /// Δv_c = 0.1 · (1, 0, 1).
     #[test]
     fn cohesion_three_fish() {
-        let dv = cohesion(
-            Vec3::ZERO,
-            &[Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0)],
-            3.0,
-            0.1,
-        );
+        let others = [
+            (Vec3::new(2.0, 0.0, 0.0), Vec3::ZERO),
+            (Vec3::new(0.0, 0.0, 2.0), Vec3::ZERO),
+        ];
+        let dv = Neighbourhood::of(Vec3::ZERO, &others, R3).cohesion(Vec3::ZERO, 0.1);
         assert!(close(dv, Vec3::new(0.1, 0.0, 0.1)), "{dv}");
+    }
+
+    /// Regression (issue 11, item 7): every neighbour within range counts — no
+    /// cap, no grid order. 150 neighbours 1 BL to the fish's −x and 50 at 2 BL
+    /// to its +x: mean separation (150·2·(1,0,0) + 50·1·(−2,0,0))/200 =
+    /// (1, 0, 0); × 30 = (30, 0, 0). (A cap of 96 filled from one side first
+    /// would see only one of the two groups.)
+    #[test]
+    fn all_neighbours_in_range_count() {
+        let mut others = vec![(-Vec3::X, Vec3::ZERO); 150];
+        others.extend(vec![(2.0 * Vec3::X, Vec3::ZERO); 50]);
+        let dv = Neighbourhood::of(Vec3::ZERO, &others, R3).separation(30.0);
+        assert!(close(dv, Vec3::new(30.0, 0.0, 0.0)), "{dv}");
     }
 
     /// Boundary, in a 5 m cube, a fish (BL 0.5) 1 m (2 BL) from the wall x = 2.5,
@@ -412,7 +530,7 @@ mod tests {
     #[test]
     fn boundary_wall_ahead() {
         let cage = crate::cage::Cage::new(crate::config::CageConfig::Cube { edge: 5.0 });
-        let cfg = FoidsConfig::default();
+        let cfg = FoidsConfig::table1();
         let p = Vec3::new(1.5, -2.5, 0.0);
         let dv = boundary(p, Vec3::X, 0.5, &cage.boundaries, &cfg, 1.0);
         assert!(close(dv, Vec3::new(-4.0, 0.0, 0.0)), "{dv}");

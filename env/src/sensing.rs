@@ -1,0 +1,136 @@
+//! The sensing stage (SPEC §5): what a fish sees and knows at a decision.
+//!
+//! For fish `i` with sensing range `d_sense` (its species' range in BL times
+//! its body length), one pass over the boundaries, the obstacles and the
+//! neighbours within `d_sense` (from the spatial grid, in its fixed order):
+//! * fills the newest grid frame: boundaries and obstacles by casting each
+//!   cell's centre ray, neighbours as spheres of their visual radius (the
+//!   chase partner with its own channel);
+//! * sums the surroundings the reward needs ([`Surroundings`]): the boundary
+//!   closeness `Σ (d_sense − d_i)/d_sense` (boundaries and obstacles within
+//!   range) and the alignment `Σ (90 − Δθ_j)/90` (neighbours within range);
+//! * finds the nearest neighbour in front (for `u_t`) and, for a free dominant
+//!   fish, the nearest free subordinate of its species (a chase target).
+//!
+//! The vector observation is `[u_x, u_y, u_z, depth / H, aggressor, target]`
+//! in the fish's local frame, `u = (0, 0, 1) − R⁻¹·f_front` (zero without a
+//! neighbour in front).
+
+use crate::kinematics::{basis, fast_acos_deg};
+use crate::traits::Traits;
+use crate::world::{Chase, World};
+use deepfoids_sensors::{
+    Boundary, Frame, GridSensor, Obstacle, SeenKind, SpatialGrid, SphereBatch,
+};
+use glam::Vec3;
+
+/// What the sensor pass found around one fish.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Surroundings {
+    /// `Σ (d_sense − d_i)/d_sense` over boundaries and obstacles within range.
+    pub boundary_sum: f32,
+    /// `Σ (90 − Δθ_j)/90` over neighbours within range.
+    pub alignment_sum: f32,
+    pub nearest_front: Option<u32>,
+    pub nearest_subordinate: Option<u32>,
+}
+
+/// Read-only view of what sensing needs.
+pub(crate) struct Sensing<'a> {
+    pub world: &'a World,
+    pub traits: &'a Traits,
+    pub boundaries: &'a [Boundary],
+    pub obstacles: &'a [Obstacle],
+    pub sensor: &'a GridSensor,
+    /// Neighbours, rebuilt with the visual radii before the pass.
+    pub grid: &'a SpatialGrid,
+    pub cage_height: f32,
+}
+
+impl Sensing<'_> {
+    /// Fill `frame` with what fish `i` sees and sum up its surroundings.
+    pub fn sense(&self, i: usize, frame: &mut Frame) -> Surroundings {
+        let w = self.world;
+        let range = self.traits.sense[i];
+        frame.clear(range);
+        let (p, f) = (w.position[i], w.heading[i]);
+        let rot = basis(f, w.roll[i]);
+        let to_local = rot.transpose();
+        let mut seen = Surroundings::default();
+        for bd in self.boundaries {
+            let d = bd.plane.distance(p);
+            if d < range {
+                seen.boundary_sum += (range - d.max(0.0)) / range;
+                frame.add_plane(
+                    self.sensor,
+                    to_local * bd.plane.normal,
+                    d.max(0.0),
+                    SeenKind::from(bd.kind),
+                );
+            }
+        }
+        for o in self.obstacles {
+            let d = o.distance(p);
+            if d < range {
+                seen.boundary_sum += (range - d.max(0.0)) / range;
+                frame.add_obstacle(self.sensor, p, rot, o);
+            }
+        }
+        let partner = w.chase[i].partner();
+        let wants_target = w.dominant[i] && w.chase[i] == Chase::None;
+        let (mut front_d, mut sub_d) = (f32::INFINITY, f32::INFINITY);
+        let range2 = range * range;
+        let mut spheres = SphereBatch::new();
+        self.grid.for_each_candidate(p, range, |j, q| {
+            let rel = q.truncate() - p;
+            let d2 = rel.length_squared();
+            if d2 >= range2 || j == i {
+                return;
+            }
+            let d = d2.sqrt();
+            seen.alignment_sum += (90.0 - fast_acos_deg(f.dot(w.heading[j]))) / 90.0;
+            if rel.dot(f) > 0.0 && d < front_d {
+                front_d = d;
+                seen.nearest_front = Some(j as u32);
+            }
+            if wants_target
+                && w.species[j] == w.species[i]
+                && !w.dominant[j]
+                && w.chase[j] == Chase::None
+                && d < sub_d
+            {
+                sub_d = d;
+                seen.nearest_subordinate = Some(j as u32);
+            }
+            let kind = if partner == Some(j) {
+                SeenKind::ChasePartner
+            } else {
+                SeenKind::Fish
+            };
+            if spheres.push(to_local * rel, q.w, kind) {
+                frame.add_spheres(self.sensor, &spheres);
+                spheres.clear();
+            }
+        });
+        frame.add_spheres(self.sensor, &spheres);
+        seen
+    }
+
+    /// `[u (3), depth / H, aggressor, target]`; the roles are those of the state now.
+    pub fn vector_obs(&self, i: usize, seen: &Surroundings, out: &mut [f32]) {
+        let w = self.world;
+        let u = match seen.nearest_front {
+            Some(j) => {
+                let to_local = basis(w.heading[i], w.roll[i]).transpose();
+                Vec3::Z - to_local * w.heading[j as usize]
+            }
+            None => Vec3::ZERO,
+        };
+        out[0] = u.x;
+        out[1] = u.y;
+        out[2] = u.z;
+        out[3] = -w.position[i].y / self.cage_height;
+        out[4] = matches!(w.chase[i], Chase::Aggressor { .. }) as u8 as f32;
+        out[5] = matches!(w.chase[i], Chase::Target { .. }) as u8 as f32;
+    }
+}
