@@ -55,6 +55,21 @@ fn pack(k: usize, hidden: usize, rng: &mut Rng) -> EncoderPack {
     EncoderPack::new(k, hidden, 0.01, w1, b1, w2, b2, wfc, bfc)
 }
 
+/// The first body of a pack, alone.
+fn pack1(p: &EncoderPack) -> EncoderPack {
+    EncoderPack::new(
+        1,
+        p.hidden,
+        p.slope,
+        p.w1[..C1 * PATCH1].to_vec(),
+        p.b1[..C1].to_vec(),
+        vec![p.w2[0].clone()],
+        vec![p.b2[0].clone()],
+        vec![p.wfc[0].clone()],
+        vec![p.bfc[0].clone()],
+    )
+}
+
 fn main() {
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let (n, k, hidden, reps) = (1024, 2, 128, 7);
@@ -78,6 +93,26 @@ fn main() {
                 best[i] = best[i].min(t.elapsed().as_secs_f64());
             }
         }
+        // Acting: the actor's encoder alone (K = 1) on the environment's f32 grids.
+        let dense = g.to_dense();
+        let actor = pack1(&pack);
+        let mut out = vec![0.0f32; n * hidden];
+        let mut best_infer = [f64::MAX; 2];
+        let mut actor = actor;
+        for _ in 0..reps {
+            for (i, sparse_below) in [0.0f32, 1.0].into_iter().enumerate() {
+                actor.sparse_below_dense = sparse_below;
+                let t = Instant::now();
+                actor.infer(GridsRef::Dense(&dense), &mut out);
+                std::hint::black_box(&out);
+                best_infer[i] = best_infer[i].min(t.elapsed().as_secs_f64());
+            }
+        }
+        println!(
+            "{scene}: actor encoder inference on f32 grids (K = 1): im2col + GEMM {:.1} ms, non-zeros {:.1} ms",
+            1e3 * best_infer[0],
+            1e3 * best_infer[1]
+        );
         println!(
             "{scene} ({:.0} % non-zero): im2col + GEMM {:.1} ms, non-zeros {:.1} ms: {:.2}×",
             100.0 * nz as f64 / (n * STACKED_LEN) as f64,

@@ -116,7 +116,7 @@ fn encoder_case(sparse_below: f32) {
     let out_k = deepfoids_learn::kernels::ops::encode_with(
         &[layers],
         &Grids::Dense(x_k.clone()),
-        sparse_below,
+        Some(sparse_below),
     )
     .expect("the encoder kernel runs on Flex with autodiff");
     let out_r = b.encode_reference(x_r.clone());
@@ -162,7 +162,7 @@ fn two_encoders_case(sparse_below: f32) {
     let both = deepfoids_learn::kernels::ops::encode_with(
         &[layers(&a), layers(&c)],
         &Grids::Compact(Arc::new(compact)),
-        sparse_below,
+        Some(sparse_below),
     )
     .expect("the encoder kernel runs on Flex with autodiff");
     let outs = vec![

@@ -156,11 +156,19 @@ fn col2im2(dcols: &[f32], k: usize, b: usize, s: usize, da1: &mut [f32]) {
 }
 
 /// Use conv 1 on the non-zeros ([`sparse`]) when at most this fraction of a
-/// chunk's inputs is non-zero. Measured here (one thread, actor forward on
-/// 1,000 observations): at 30 % random non-zeros im2col + GEMM took 28 ms and
-/// the sparse loop 33 ms; at the sensor's 21 % (coho) the sparse loop is
-/// several times faster in training. Break-even ≈ 25 %.
+/// chunk's inputs is non-zero, for quantised grids (PPO's buffer, SAC's
+/// replay: the updates). Measured here (one thread, actor forward on 1,000
+/// observations): at 30 % random non-zeros im2col + GEMM took 28 ms and the
+/// sparse loop 33 ms; at the sensor's 21 % (coho) the updates' forward +
+/// backward is 1.27× faster on the non-zeros, at seabream's 9 % 1.8×
+/// (`benches/encoder.rs`). Break-even ≈ 25 %.
 pub const SPARSE_BELOW: f32 = 0.25;
+
+/// The same for f32 grids (acting on the environment's observations): never.
+/// Unpacking f32 grids is a copy, and listing their non-zeros reads every
+/// input, so im2col + GEMM wins even at 9 % (`benches/encoder.rs`: the actor's
+/// encoder on 1,000 grids, 13.5 ms against 22.6 ms at coho's density).
+pub const SPARSE_BELOW_DENSE: f32 = 0.0;
 
 /// The encoders of `K` bodies, their weights copied out of the Burn modules.
 #[derive(Clone, Debug)]
@@ -172,8 +180,10 @@ pub struct EncoderPack {
     pub w1: Vec<f32>,
     /// The same transposed, `[1152, 16·K]`, for the sparse loop.
     pub w1t: Vec<f32>,
-    /// Conv 1 on the non-zeros when their fraction is at most this ([`SPARSE_BELOW`]).
+    /// Conv 1 on the non-zeros when their fraction is at most this: for
+    /// quantised grids ([`SPARSE_BELOW`]) and for f32 grids ([`SPARSE_BELOW_DENSE`]).
     pub sparse_below: f32,
+    pub sparse_below_dense: f32,
     pub spans: Spans,
     /// `[16·K]`.
     pub b1: Vec<f32>,
@@ -254,6 +264,7 @@ impl EncoderPack {
             w1,
             b1,
             sparse_below: SPARSE_BELOW,
+            sparse_below_dense: SPARSE_BELOW_DENSE,
             spans: Spans::default(),
             w2,
             b2,
@@ -270,7 +281,14 @@ impl EncoderPack {
         s: usize,
         nzs: &mut [Vec<Nonzero>],
     ) -> bool {
-        let limit = self.sparse_below * (s * STACKED_LEN) as f32;
+        let below = match grids {
+            GridsRef::Dense(_) => self.sparse_below_dense,
+            GridsRef::Compact(_) => self.sparse_below,
+        };
+        if below <= 0.0 {
+            return false;
+        }
+        let limit = below * (s * STACKED_LEN) as f32;
         if let GridsRef::Dense(x) = grids {
             // Count first (a vectorised pass): building the list costs more.
             let part = &x[first * STACKED_LEN..(first + s) * STACKED_LEN];

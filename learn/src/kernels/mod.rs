@@ -6,7 +6,8 @@
 //!
 //! * [`encoder`] and [`dense`]: the arithmetic on flat slices, one chunk of
 //!   samples at a time; conv 1 as im2col + GEMM, or on the non-zero inputs
-//!   only ([`sparse`]) when the grids are sparse, as the sensor's are;
+//!   only ([`sparse`]) when quantised grids (the updates') are sparse, as the
+//!   sensor's are;
 //! * [`ops`]: the same as Burn operations with a hand-written backward,
 //!   registered in Burn's autodiff graph (custom ops on the Flex backend);
 //! * [`infer`]: a fused forward without autodiff for acting (rollouts,

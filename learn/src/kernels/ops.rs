@@ -200,15 +200,18 @@ impl<const N: usize> Backward<Flex, N> for EncoderBackward<N> {
 /// body `b` in columns `b·hidden..(b + 1)·hidden`. `None` unless every tensor
 /// is on the Flex backend (with or without autodiff).
 pub fn encode(bodies: &[EncoderLayers<'_>], grids: &Grids) -> Option<Tensor<2>> {
-    encode_with(bodies, grids, super::encoder::SPARSE_BELOW)
+    encode_with(bodies, grids, None)
 }
 
 /// [`encode`] with conv 1 on the non-zeros when at most `sparse_below` of a
-/// chunk's inputs is non-zero (0: always im2col + GEMM; 1: always sparse).
+/// chunk's inputs is non-zero, quantised or f32 grids alike (0: always
+/// im2col + GEMM; 1: always sparse; `None`: the defaults,
+/// [`SPARSE_BELOW`](super::encoder::SPARSE_BELOW) and
+/// [`SPARSE_BELOW_DENSE`](super::encoder::SPARSE_BELOW_DENSE)).
 pub fn encode_with(
     bodies: &[EncoderLayers<'_>],
     grids: &Grids,
-    sparse_below: f32,
+    sparse_below: Option<f32>,
 ) -> Option<Tensor<2>> {
     let k = bodies.len();
     let n = grids.len();
@@ -238,7 +241,10 @@ pub fn encode_with(
         bfc.push(v(5));
     }
     let mut pack = EncoderPack::new(k, hidden, bodies[0].slope, w1, b1, w2, b2, wfc, bfc);
-    pack.sparse_below = sparse_below;
+    if let Some(below) = sparse_below {
+        pack.sparse_below = below;
+        pack.sparse_below_dense = below;
+    }
     let grid_data = match grids {
         Grids::Dense(_) => {
             let t = prims[0].flex();
