@@ -235,7 +235,7 @@ pub fn gif_bytes(rec: &Recording, view: GifView, size: u32, speed: f64) -> Resul
     let width = x.max(360);
     let height_px = HEADER + 2 * PAD + panels.iter().map(|p| p.size.1).max().unwrap_or(0);
     if width > u16::MAX as i32 || height_px > u16::MAX as i32 {
-        bail!("a {width} × {height_px} px GIF is too large; lower --gif-scale");
+        bail!("a {width} × {height_px} px GIF is too large; lower --gif-size");
     }
     let (w, h) = (width as u32, height_px as u32);
 

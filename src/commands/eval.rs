@@ -3,18 +3,16 @@
 use super::{load_scene, make_policy};
 use crate::cli::EvalArgs;
 use crate::report::{EvalMeta, RunArgs, evaluate, print_table, write_outputs};
-use anyhow::{Result, bail};
+use anyhow::Result;
+use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::{ConfigDirs, Env};
 use deepfoids_replay::EnvRecorder;
 use std::path::PathBuf;
 
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        bail!("--seconds must be a positive number, got {}", args.seconds);
-    }
-    if !(args.warmup >= 0.0 && args.warmup.is_finite()) {
-        bail!("--warmup must be a number ≥ 0, got {}", args.warmup);
-    }
+    crate::bounds::seconds("--seconds", args.seconds)?;
+    crate::bounds::warmup("--warmup", args.warmup)?;
+    crate::bounds::at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
@@ -27,9 +25,18 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
             sa.seed
         ))
     });
-    let info = args
-        .replay
-        .then(|| super::replay::info(&env, &policy.name(), "simulated by deepfoids eval", vec![]));
+    let _lock = crate::io::lock_dir(&out)?;
+    let info = if args.replay {
+        super::replay::check_recording(&env, args.seconds, args.replay_fps)?;
+        Some(super::replay::info(
+            &env,
+            &policy.name(),
+            "simulated by deepfoids eval",
+            vec![],
+        ))
+    } else {
+        None
+    };
     let mut recorder = None;
     let mut record_error = None;
     let eval = evaluate(

@@ -19,6 +19,8 @@ use crate::io::write_atomic;
 use crate::report::{Evaluation, RunArgs, evaluate};
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use deepfoids_env::limits::MAX_FPS;
+use deepfoids_env::memory;
 use deepfoids_env::{ConfigDirs, Env, Phase};
 use deepfoids_replay::{EnvRecorder, Info, PageSize, Recording, from_trajectories, page};
 use std::path::{Path, PathBuf};
@@ -68,6 +70,7 @@ pub struct ReplayArgs {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
+    crate::bounds::at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
     let rec = match &args.from {
         Some(dir) => from_folder(dirs, dir, args)?,
         None => {
@@ -76,9 +79,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
                     "give --scene (and --policy) to simulate a school, or --from <simulate or eval folder> to replay one"
                 );
             };
-            if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-                bail!("--seconds must be a positive number, got {}", args.seconds);
-            }
+            crate::bounds::seconds("--seconds", args.seconds)?;
             let sa = SceneArgs {
                 scene: scene.clone(),
                 seed: args.seed.unwrap_or(0),
@@ -112,6 +113,27 @@ pub fn write_page(path: &Path, rec: &Recording) -> Result<PageSize> {
     }
     write_atomic(path, html.as_bytes())?;
     Ok(size)
+}
+
+/// Peak bytes per fish and frame while a page is built: the recording (27 B
+/// with the reward terms), its encoded copy (27), the gzip stream (at most
+/// 27), its base64 text (36) and the page that holds it (36) — 153, rounded up.
+const PAGE_BYTES_PER_FISH_FRAME: u64 = 160;
+
+/// A CSV row of `trajectories.csv` is at least this long (bytes).
+const MIN_CSV_ROW: u64 = 60;
+
+/// Refuse a replay whose page would not fit into memory (`deepfoids_env::memory`).
+pub fn check_recording(env: &Env, seconds: f64, fps: f64) -> Result<()> {
+    let stride = deepfoids_replay::stride(fps, env.tick_seconds())?;
+    let frames = (seconds / (stride as f64 * env.tick_seconds())).floor() as u64 + 1;
+    let fish = env.world().len() as u64;
+    deepfoids_env::memory::check(
+        &format!("a replay of {fish} fish × {frames} frames"),
+        frames * fish * PAGE_BYTES_PER_FISH_FRAME,
+        "lower --seconds or --fps",
+    )?;
+    Ok(())
 }
 
 /// One line on what was written.
@@ -178,6 +200,7 @@ fn simulate(
     let (sa, opts) = run.options()?;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
+    check_recording(&env, run.seconds, fps)?;
     let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts)?;
     let info = info(&env, &policy.name(), source, vec![]);
     let mut recorder = None;
@@ -260,6 +283,14 @@ fn from_simulate(
     };
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let env = Env::new(scene, sa.seed);
+    let csv_bytes = std::fs::metadata(csv)
+        .with_context(|| format!("cannot read {}", csv.display()))?
+        .len();
+    deepfoids_env::memory::check(
+        &format!("replaying {} ({})", csv.display(), memory::human(csv_bytes)),
+        csv_bytes + csv_bytes / MIN_CSV_ROW * PAGE_BYTES_PER_FISH_FRAME,
+        "replay a shorter simulation",
+    )?;
     let text =
         std::fs::read_to_string(csv).with_context(|| format!("cannot read {}", csv.display()))?;
     let source = format!("replayed from {}", csv.display());

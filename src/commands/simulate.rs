@@ -6,7 +6,7 @@ use super::{load_scene, make_policy};
 use crate::cli::SimulateArgs;
 use crate::io::{AtomicFile, write_atomic};
 use crate::report::RunArgs;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, StepOutput, TERM_NAMES};
 use std::io::Write;
@@ -44,15 +44,14 @@ impl Tally {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        bail!("--seconds must be a positive number, got {}", args.seconds);
-    }
+    crate::bounds::seconds("--seconds", args.seconds)?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let out_dir = args
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
+    let _lock = crate::io::lock_dir(&out_dir)?;
     let mut env = Env::new(scene, sa.seed);
     let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &args.policy_args)?;
     let mut actions = action_buffers(&env);
