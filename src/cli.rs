@@ -110,12 +110,9 @@ pub struct PolicyArgs {
     /// With a run folder: sample actions instead of acting with the clipped mean
     #[arg(long)]
     pub stochastic: bool,
-    /// Compute backend for trained policies
-    #[arg(long, default_value = "flex", value_parser = parse_backend)]
-    pub backend: deepfoids_ppo::Backend,
 }
 
-fn parse_backend(s: &str) -> Result<deepfoids_ppo::Backend, String> {
+fn parse_backend(s: &str) -> Result<deepfoids_learn::Backend, String> {
     s.parse()
 }
 
@@ -163,13 +160,13 @@ pub struct TrainOptions {
     /// Folder of the runs
     #[arg(long, default_value = "runs", value_name = "DIR")]
     pub runs_dir: PathBuf,
-    /// Compute backend
+    /// Compute backend of the training (acting runs on the hand-written kernels)
     #[arg(long, default_value = "flex", value_parser = parse_backend)]
-    pub backend: deepfoids_ppo::Backend,
+    pub backend: deepfoids_learn::Backend,
     /// Simulated seconds of the deterministic evaluation after training (0: none)
     #[arg(long, default_value_t = 30.0)]
     pub eval_seconds: f64,
-    /// No progress bar
+    /// No progress bar and no progress lines
     #[arg(long)]
     pub quiet: bool,
 }
@@ -182,10 +179,13 @@ pub struct TrainCmd {
     /// Reward weights and budget of this phase
     #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
     pub phase: Phase,
-    /// Start from the weights of this run (transfer learning); the step count starts at 0
-    #[arg(long, value_name = "RUN")]
-    pub init_from: Option<PathBuf>,
-    /// Agent decisions to train [default: the thesis' budget for the species and phase]
+    /// Start from the weights of these runs (transfer learning; comma-separated
+    /// or repeated, e.g. one per species): each behaviour takes the weights of
+    /// a behaviour of the same name, else of the same species; steps start at 0
+    #[arg(long, value_name = "RUN", value_delimiter = ',')]
+    pub init_from: Vec<PathBuf>,
+    /// Agent decisions to train, per behaviour (each counts its own, as ML-Agents'
+    /// max_steps) [default: the thesis' budget for its species and phase]
     #[arg(long)]
     pub steps: Option<u64>,
     /// Run name [default: <algo>-<scene>-<phase>-s<seed>]
@@ -234,9 +234,6 @@ pub struct CompareArgs {
     /// Weight of the exponential moving average of the curves (TensorBoard's smoothing)
     #[arg(long, default_value_t = 0.6, value_name = "W")]
     pub smoothing: f64,
-    /// Compute backend for the policies
-    #[arg(long, default_value = "flex", value_parser = parse_backend)]
-    pub backend: deepfoids_ppo::Backend,
     /// Output folder
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
@@ -244,16 +241,17 @@ pub struct CompareArgs {
 
 #[derive(Args, Debug)]
 pub struct PipelineArgs {
-    /// Species to train: its default scene, then every scene with only this species
+    /// Species to train: its default scene, then every scene with only this
+    /// species; `all`: every species, then every scene (mixed ones included)
     #[arg(long)]
     pub species: String,
-    /// Pretraining budget (agent decisions) [default: the thesis' budget]
+    /// Pretraining budget per behaviour (agent decisions) [default: the thesis' budget]
     #[arg(long)]
     pub pretrain_steps: Option<u64>,
-    /// Transfer budget per scene [default: the thesis' budget]
+    /// Transfer budget per behaviour and scene [default: the thesis' budget]
     #[arg(long)]
     pub transfer_steps: Option<u64>,
-    /// Only these target scenes (comma-separated) [default: all of the species]
+    /// Only these target scenes (comma-separated) [default: all of the species, or all]
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
     /// Run name [default: pipeline-<algo>-<species>-s<seed>]
@@ -308,7 +306,7 @@ pub struct BenchTrainArgs {
     /// Scene id or path
     #[arg(long, default_value = "seabream_default", value_name = "ID|PATH")]
     pub scene: String,
-    /// Agent decisions to train
+    /// Agent decisions to train, per behaviour
     #[arg(long, default_value_t = 30_000)]
     pub steps: u64,
     /// Training algorithm
@@ -316,7 +314,10 @@ pub struct BenchTrainArgs {
     pub algo: Algo,
     /// Compute backend
     #[arg(long, default_value = "flex", value_parser = parse_backend)]
-    pub backend: deepfoids_ppo::Backend,
+    pub backend: deepfoids_learn::Backend,
+    /// PPO's rollout: `ml-agents` or `synchronous` [default: configs/train/ppo.toml's]
+    #[arg(long)]
+    pub rollout: Option<String>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }

@@ -101,7 +101,9 @@ pub struct EvalMeta<'a> {
 
 /// The command-line values that reproduce a run's school exactly (seeded
 /// runs are deterministic): recorded in `summary.json` by `eval` and in
-/// `simulate.json` by `simulate`, read back by `replay --from`.
+/// `simulate.json` by `simulate`, read back by `replay --from`. (Files
+/// written when acting had a `--backend` hold a `backend` key too, ignored:
+/// trained policies now act on the hand-written kernels.)
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RunArgs {
     /// `--scene` as given (an id or a path).
@@ -112,7 +114,6 @@ pub struct RunArgs {
     pub policy: String,
     pub checkpoint: Option<u64>,
     pub stochastic: bool,
-    pub backend: String,
     /// Simulated seconds run before recording (absent in files written
     /// before `--warmup` existed: 0).
     #[serde(default)]
@@ -137,7 +138,6 @@ impl RunArgs {
             policy: policy.to_string(),
             checkpoint: opts.checkpoint,
             stochastic: opts.stochastic,
-            backend: opts.backend.as_str().to_string(),
             warmup,
             seconds,
         }
@@ -157,10 +157,6 @@ impl RunArgs {
             PolicyArgs {
                 checkpoint: self.checkpoint,
                 stochastic: self.stochastic,
-                backend: self
-                    .backend
-                    .parse()
-                    .map_err(|e| anyhow::anyhow!("backend `{}`: {e}", self.backend))?,
             },
         ))
     }

@@ -284,6 +284,7 @@ fn train_export_and_eval_through_onnx() {
         "scalars.csv",
         "final/state.json",
         "final/seabream_regular.model.bpk",
+        "final/seabream_regular.onnx",
     ] {
         assert!(run.join(f).exists(), "{f} missing");
     }
@@ -317,6 +318,33 @@ fn train_export_and_eval_through_onnx() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("opset 9"), "{}", text(&o));
+    // The run's own final/<behaviour>.onnx is the same file.
+    assert_eq!(
+        std::fs::read(&onnx).unwrap(),
+        std::fs::read(run.join("final/seabream_regular.onnx")).unwrap()
+    );
+    // A SAC run does not start from a PPO run.
+    let o = deepfoids(&[
+        "train",
+        "--algo",
+        "sac",
+        "--scene",
+        "seabream_default",
+        "--phase",
+        "transfer",
+        "--init-from",
+        run.to_str().unwrap(),
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "sac-from-ppo",
+        "--quiet",
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("holds a ppo policy; sac is needed"),
+        "{}",
+        text(&o)
+    );
     let mut pm = vec![];
     for policy in [onnx.to_str().unwrap(), run.to_str().unwrap()] {
         let out = runs.join(format!("eval-{}", pm.len()));
@@ -445,4 +473,68 @@ fn compare_ppo_and_sac_runs() {
         "{}",
         text(&o)
     );
+}
+
+/// `pipeline --species all`: the three species pretrained (here 0 steps),
+/// then `three_species` transferred from all three runs, one per species;
+/// the summary has a row per stage.
+#[test]
+fn pipeline_all_species_transfers_into_three_species() {
+    let runs = temp("pipeline-all");
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "all",
+        "--scenes",
+        "three_species",
+        "--pretrain-steps",
+        "0",
+        "--transfer-steps",
+        "200",
+        "--eval-seconds",
+        "0.5",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "p",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let root = runs.join("p");
+    let csv = std::fs::read_to_string(root.join("summary.csv")).unwrap();
+    let scenes: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(
+        scenes,
+        [
+            "coho_default",
+            "seabream_default",
+            "yellowtail_default",
+            "three_species"
+        ],
+        "{csv}"
+    );
+    let state: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root.join("transfer-three_species/final/state.json")).unwrap(),
+    )
+    .unwrap();
+    let init: Vec<&str> = state["init_from"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    for species in ["coho", "yellowtail", "seabream"] {
+        assert!(
+            init.iter()
+                .any(|p| p.ends_with(&format!("pretrain-{species}"))),
+            "{init:?}"
+        );
+    }
+    for b in state["behaviours"].as_array().unwrap() {
+        assert_eq!(b["agent_steps"], 200, "{b}");
+    }
 }

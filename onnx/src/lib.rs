@@ -1,14 +1,11 @@
-//! ONNX export of trained policies (Unity ML-Agents' interface) and an ONNX
-//! policy that drives scenes through tract.
-//!
-//! The exporter needs Burn and sits behind the default `export` feature; the
-//! runtime alone (`default-features = false`) is what the Python wheel uses.
+//! Running exported policies: an ONNX policy that drives scenes through tract
+//! (pure-Rust ONNX runtime). The exporter itself lives in
+//! `deepfoids_learn::onnx`, re-exported here behind the default `export`
+//! feature; the runtime alone (`default-features = false`) is what the
+//! Python wheel uses, without Burn.
 
-#[cfg(feature = "export")]
-pub mod export;
-pub mod proto;
 pub mod runtime;
 
 #[cfg(feature = "export")]
-pub use export::{Head, Metadata, export_actor, export_policy};
+pub use deepfoids_learn::onnx::{Head, Metadata, OPSET, export, export_policy, proto};
 pub use runtime::{OnnxPolicy, check_species};

@@ -82,10 +82,11 @@ impl OnnxPolicy {
     }
 }
 
-/// `metadata_props` of a ModelProto, decoded with the exporter's own message types.
+/// `metadata_props` of a ModelProto, decoded with tract's message types (so
+/// the runtime needs no exporter).
 fn read_metadata(bytes: &[u8]) -> HashMap<String, String> {
     use prost::Message;
-    crate::proto::ModelProto::decode(bytes)
+    tract_onnx::pb::ModelProto::decode(bytes)
         .map(|m| {
             m.metadata_props
                 .into_iter()

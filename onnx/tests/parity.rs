@@ -6,8 +6,11 @@
 
 use burn::prelude::*;
 use deepfoids_env::VECTOR_OBS;
-use deepfoids_onnx::{Metadata, OnnxPolicy, export_actor};
-use deepfoids_ppo::model::{ActorCriticConfig, BodyConfig};
+use deepfoids_learn::policy::Actor;
+use deepfoids_learn::{BodyConfig, Grids};
+use deepfoids_onnx::{Metadata, OnnxPolicy};
+use deepfoids_ppo::PpoActor;
+use deepfoids_ppo::model::ActorCriticConfig;
 use deepfoids_sensors::STACKED_LEN;
 use std::path::PathBuf;
 
@@ -57,18 +60,19 @@ fn uniform(lim: f64, dev: &Device) -> burn::module::Param<Tensor<2>> {
 
 #[test]
 fn tract_matches_the_burn_actor() {
-    for backend_gemm in [true, false] {
+    for kernels in [true, false] {
         let dev = Device::flex();
         dev.seed(11);
         let cfg = ActorCriticConfig::new()
-            .with_body(BodyConfig::new().with_gemm_conv(backend_gemm))
+            .with_body(BodyConfig::new().with_kernels(kernels))
             .with_init_log_std(-0.7);
         let mut model = cfg.init(&dev);
         // Give the mean head real weight (it starts near zero) so the test exercises it.
         model.actor_mean.weight = uniform(0.5, &dev);
         let n = 64;
         let (grids, vectors, g, v) = observation_tensors(n, 3, &dev);
-        let biggest = largest(model.actor(g.clone(), v.clone()).0);
+        let grid = Grids::Dense(g);
+        let biggest = largest(model.actor(&grid, v.clone()).0);
         rescale(&mut model.actor_mean.weight, biggest);
         let meta = Metadata {
             species: "seabream".into(),
@@ -78,12 +82,14 @@ fn tract_matches_the_burn_actor() {
             training_step: 12345,
             run: "test".into(),
         };
-        let bytes = export_actor(&model, &meta);
+        let (mean, _) = model.actor(&grid, v);
+        let actor = PpoActor::new(model);
+        let bytes = actor.onnx(&meta);
         let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../target/onnx-check"));
         std::fs::create_dir_all(&dir).unwrap();
         // The case for the Python checker is the first model's (the other is a
         // different draw when tests seeding the device run in parallel).
-        let path = if backend_gemm {
+        let path = if kernels {
             dir.join("policy.onnx")
         } else {
             std::env::temp_dir().join(format!("deepfoids-parity-{}.onnx", std::process::id()))
@@ -93,7 +99,6 @@ fn tract_matches_the_burn_actor() {
         assert_eq!(policy.metadata["species"], "seabream");
         assert_eq!(policy.metadata["training_step"], "12345");
 
-        let (mean, _) = model.actor(g, v);
         let expected: Vec<f32> = mean
             .clamp(-1.0, 1.0)
             .into_data()
@@ -110,8 +115,17 @@ fn tract_matches_the_burn_actor() {
             .zip(&expected)
             .map(|(a, b)| (a - b).abs())
             .fold(0.0f32, f32::max);
-        eprintln!(
-            "tract vs Burn (gemm convolutions: {backend_gemm}): max abs difference {worst:.2e} at batch 64"
+        eprintln!("tract vs Burn (kernels: {kernels}): max abs difference {worst:.2e} at batch 64");
+        // The fused forward (acting) gives the same actions.
+        let fused = actor.deterministic(&grids, &vectors);
+        let worst_fused = fused
+            .iter()
+            .zip(&expected)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst_fused <= 1e-4,
+            "fused forward: max abs difference {worst_fused}"
         );
         assert!(worst <= 1e-4, "batch 64: max abs difference {worst}");
         // Batch 1, one observation at a time.
@@ -138,7 +152,7 @@ fn tract_matches_the_burn_actor() {
             .unwrap();
         assert!(sampled.iter().all(|x| (-1.0..=1.0).contains(x)));
         assert!(sampled.iter().zip(&got).any(|(a, b)| (a - b).abs() > 1e-3));
-        if backend_gemm {
+        if kernels {
             // Leave the case for the Python checker.
             let bin = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
             std::fs::write(dir.join("obs_0.bin"), bin(&grids)).unwrap();
@@ -164,7 +178,8 @@ fn tract_matches_the_sac_actor() {
     actor.log_std.weight = uniform(0.5, &dev);
     let n = 32;
     let (grids, vectors, g, v) = observation_tensors(n, 5, &dev);
-    let biggest = largest(actor.forward(g.clone(), v.clone()).0);
+    let grid = Grids::Dense(g);
+    let biggest = largest(actor.forward(&grid, v.clone()).0);
     rescale(&mut actor.mean.weight, biggest);
     let meta = Metadata {
         species: "seabream".into(),
@@ -190,8 +205,19 @@ fn tract_matches_the_sac_actor() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("policy.onnx");
     std::fs::write(&path, &bytes).unwrap();
-    let (mean, _) = actor.forward(g, v);
+    let (mean, _) = actor.forward(&grid, v);
     let expected: Vec<f32> = mean.tanh().into_data().try_into_vec::<f32>().unwrap();
+    // The fused forward (acting) gives the same actions.
+    let fused = deepfoids_sac::SacActor::new(actor.clone()).deterministic(&grids, &vectors);
+    let worst_fused = fused
+        .iter()
+        .zip(&expected)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst_fused <= 1e-4,
+        "fused forward: max abs difference {worst_fused}"
+    );
     let biggest = expected.iter().fold(0.0f32, |m, x| m.max(x.abs()));
     assert!(
         biggest > 0.05,

@@ -3,9 +3,26 @@
 //! and missing keys take the documented defaults.
 
 use deepfoids_env::config::{ConfigError, read_toml};
-use deepfoids_env::{ConfigDirs, Phase, Scene};
+use deepfoids_env::{ConfigDirs, Phase};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+
+/// How experience is cut into updates (SPEC §8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Rollout {
+    /// ML-Agents' (the default, Table 4.4 as ML-Agents runs it): each agent's
+    /// trajectory ends after `time_horizon` decisions or at the end of its
+    /// episode and then joins the buffer; an update happens once the buffer
+    /// holds at least `buffer_size` transitions (1,000 coho: after 64
+    /// decisions, 64,000 transitions).
+    MlAgents,
+    /// The scheme before issue 12: every `ceil(buffer_size / agents)`
+    /// decisions of a behaviour (11 for 1,000 coho), every agent's trajectory
+    /// is cut there, bootstrapped, and the buffer is used; `time_horizon`
+    /// cuts still apply within.
+    Synchronous,
+}
 
 /// How the learning rate changes over the budget.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -33,13 +50,16 @@ pub struct PpoConfig {
     pub value_coef: f32,
     /// Entropy coefficient β. Table 4.4: 0.0005.
     pub entropy_coef: f32,
-    /// Agent decisions collected per update, per behaviour. Table 4.4: 10240.
+    /// How experience is cut into updates: "ml-agents" (default) or "synchronous".
+    pub rollout: Rollout,
+    /// Transitions needed for an update, per behaviour. Table 4.4: 10240.
     pub buffer_size: usize,
     /// Minibatch size. Table 4.4: 1024.
     pub batch_size: usize,
     /// Passes over the buffer per update. Table 4.4: 3.
     pub epochs: usize,
-    /// Trajectories are cut and bootstrapped every this many decisions. Table 4.4: 64.
+    /// Decisions per trajectory: an agent's trajectory is cut there and
+    /// bootstrapped from the critic. Table 4.4: 64.
     pub time_horizon: usize,
     /// Global gradient-norm clip, applied to the actor's and the critic's parameters separately. 0.5.
     pub max_grad_norm: f32,
@@ -62,6 +82,9 @@ pub struct PpoConfig {
     pub checkpoint_every: u64,
     /// Checkpoints kept (older ones are deleted). 5.
     pub keep_checkpoints: usize,
+    /// A progress line every this many agent decisions of a behaviour when
+    /// stdout is not a terminal (ML-Agents' `summary_freq`). 50,000.
+    pub progress_every: u64,
     /// Agent decisions per species, `[pretraining, transfer]` (thesis §4.5.2).
     pub budgets: BTreeMap<String, [u64; 2]>,
 }
@@ -76,6 +99,7 @@ impl Default for PpoConfig {
             clip_epsilon: 0.2,
             value_coef: 0.5,
             entropy_coef: 0.0005,
+            rollout: Rollout::MlAgents,
             buffer_size: 10240,
             batch_size: 1024,
             epochs: 3,
@@ -89,6 +113,7 @@ impl Default for PpoConfig {
             adam_epsilon: 1e-8,
             checkpoint_every: 100_000,
             keep_checkpoints: 5,
+            progress_every: 50_000,
             budgets: BTreeMap::from([
                 ("coho".to_string(), [4_000_000, 1_000_000]),
                 ("yellowtail".to_string(), [2_000_000, 2_000_000]),
@@ -133,20 +158,35 @@ impl PpoConfig {
         if self.max_grad_norm.is_nan() || self.max_grad_norm <= 0.0 {
             return bad("max_grad_norm", "must be positive");
         }
+        if self.checkpoint_every == 0 || self.progress_every == 0 {
+            return bad(
+                "checkpoint_every",
+                "checkpoint_every and progress_every must be at least 1",
+            );
+        }
         Ok(())
     }
 
-    /// The thesis' budget for a scene and phase: the largest of its species' budgets.
-    pub fn budget(&self, scene: &Scene, phase: Phase) -> u64 {
+    /// The thesis' budget of a behaviour of `species` in `phase` (its own agent decisions).
+    pub fn budget(&self, species: &str, phase: Phase) -> u64 {
         let k = match phase {
             Phase::Pretrain => 0,
             Phase::Transfer => 1,
         };
-        scene
-            .species_names()
-            .iter()
-            .filter_map(|s| self.budgets.get(s).map(|b| b[k]))
-            .max()
-            .unwrap_or(2_000_000)
+        self.budgets.get(species).map_or(2_000_000, |b| b[k])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_file_holds_table_4_4() {
+        let dirs = ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
+        let c = PpoConfig::load(&dirs).unwrap();
+        assert_eq!(c, PpoConfig::default());
+        assert_eq!(c.budget("coho", Phase::Pretrain), 4_000_000);
+        assert_eq!(c.budget("seabream", Phase::Transfer), 2_000_000);
     }
 }

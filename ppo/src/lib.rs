@@ -1,17 +1,23 @@
-//! PPO on Burn for DeepFoids (SPEC §8; thesis §4.2, Table 4.4): one Gaussian
-//! policy per behaviour, trained in the multi-agent environment, with the
-//! two-step scheme of pretraining and transfer learning.
+//! PPO for DeepFoids (SPEC §8; thesis §4.2, Table 4.4): one Gaussian policy
+//! per behaviour, ML-Agents' rollout of per-agent trajectories, on the shared
+//! learning core `deepfoids-learn` (network, kernels, run driver).
 
-pub mod checkpoint;
 pub mod config;
 pub mod gae;
 pub mod gaussian;
-pub mod logger;
 pub mod model;
 pub mod policy;
-pub mod stats;
+pub mod reward_scale;
+pub mod rollout;
 pub mod train;
 
-pub use config::PpoConfig;
-pub use policy::TrainedPolicy;
-pub use train::{Backend, BufferMemory, TrainArgs, TrainOutcome, train};
+pub use config::{PpoConfig, Rollout};
+pub use policy::{PpoActor, load_actor};
+pub use train::Ppo;
+
+use deepfoids_learn::driver::{RunArgs, TrainOutcome, run};
+
+/// Train PPO on a scene (see `deepfoids_learn::driver`).
+pub fn train(config: PpoConfig, args: RunArgs) -> deepfoids_learn::Result<TrainOutcome> {
+    run(&Ppo { config }, args)
+}

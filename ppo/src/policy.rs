@@ -1,122 +1,103 @@
-//! A trained policy driving a scene: implements the environment's
-//! [`Policy`](deepfoids_env::Policy), so `eval` and `simulate` take a run folder.
+//! A trained PPO actor: acting on the fused kernels (deterministic: the
+//! clipped mean; sampled: `clip(μ + σ·ε)`), its reference on Burn's layers,
+//! and its ONNX export.
 
-use crate::checkpoint::{RunState, policy_dir};
-use crate::model::{ACTIONS, ActorCritic, ActorCriticConfig, BodyConfig};
-use crate::train::{Backend, load_weights};
-use anyhow::Result;
+use crate::model::ActorCritic;
+use crate::train::{model_config, model_file};
 use burn::prelude::*;
+use deepfoids_env::VECTOR_OBS;
 use deepfoids_env::rng::{Purpose, Stream};
-use deepfoids_env::{Env, Policy, PolicyError, VECTOR_OBS};
-use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
-use std::path::{Path, PathBuf};
+use deepfoids_learn::checkpoint::{BehaviourState, RunState, load_module};
+use deepfoids_learn::kernels::encoder::GridsRef;
+use deepfoids_learn::kernels::infer::InferNet;
+use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::policy::Actor;
+use deepfoids_learn::tensor::{tensor2, tensor4, to_vec};
+use deepfoids_learn::{ACTIONS, Algorithm, Result};
+use std::path::Path;
 
-/// The actors of a run, one per behaviour of the scene it drives.
-pub struct TrainedPolicy {
-    models: Vec<ActorCritic>,
-    dev: Device,
-    /// Act with the clipped mean (default) instead of sampling.
-    pub deterministic: bool,
-    pub seed: u64,
-    pub source: PathBuf,
-    pub state: RunState,
+/// One behaviour's trained PPO actor.
+pub struct PpoActor {
+    pub model: ActorCritic,
+    net: InferNet,
+    log_std: Vec<f32>,
 }
 
-impl TrainedPolicy {
-    /// Load the policy of `run` (its `final/`, or checkpoint `step`) for the behaviours of `env`.
-    /// A behaviour missing from the run takes the policy of one of the same species.
-    pub fn load(
-        run: &Path,
-        step: Option<u64>,
-        env: &Env,
-        backend: Backend,
-        deterministic: bool,
+impl PpoActor {
+    pub fn new(model: ActorCritic) -> Self {
+        Self {
+            net: model.actor_net(),
+            log_std: model.log_std_values(),
+            model,
+        }
+    }
+
+    /// Behaviour `source` of the PPO policy folder `dir` (state `state`).
+    pub fn load(dir: &Path, state: &RunState, source: &BehaviourState) -> Result<Self> {
+        RunState::load_policy(dir, Algorithm::Ppo, "a PPO actor is loaded")?;
+        let model = model_config(state.hidden, state.layers, 0.0).init(&Device::flex());
+        Ok(Self::new(load_module(
+            model,
+            &model_file(dir, &source.name),
+        )?))
+    }
+
+    /// The Gaussian's mean `[n, 3]` (fused forward).
+    pub fn mean(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+        self.net.forward(GridsRef::Dense(grids), vectors).remove(0)
+    }
+}
+
+impl Actor for PpoActor {
+    fn deterministic(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+        self.mean(grids, vectors)
+            .into_iter()
+            .map(|x| x.clamp(-1.0, 1.0))
+            .collect()
+    }
+
+    fn deterministic_reference(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+        let n = vectors.len() / VECTOR_OBS;
+        let dev = Device::flex();
+        let mean = self.model.actor_reference(
+            tensor4(grids.to_vec(), n, &dev),
+            tensor2(vectors.to_vec(), n, VECTOR_OBS, &dev),
+        );
+        to_vec(mean.clamp(-1.0, 1.0))
+    }
+
+    fn sample(
+        &self,
+        grids: &[f32],
+        vectors: &[f32],
+        first: usize,
         seed: u64,
-    ) -> Result<Self> {
-        let dir = policy_dir(run, step)?;
-        let state = RunState::load(&dir)?;
-        let dev = backend.device();
-        let cfg = ActorCriticConfig::new()
-            .with_body(
-                BodyConfig::new()
-                    .with_hidden(state.hidden)
-                    .with_layers(state.layers)
-                    .with_gemm_conv(backend.gemm_conv()),
-            )
-            .with_init_log_std(state.init_log_std);
-        let models = env
-            .behaviours()
-            .iter()
-            .map(|b| load_weights(&dir, &state, &b.name, &b.species, cfg.init(&dev)))
-            .collect::<Result<Vec<_>>>()?;
-        Ok(Self {
-            models,
-            dev,
-            deterministic,
-            seed,
-            source: dir,
-            state,
-        })
-    }
-
-    /// The actor of behaviour `b` (for export and tests).
-    pub fn model(&self, b: usize) -> &ActorCritic {
-        &self.models[b]
-    }
-}
-
-impl Policy for TrainedPolicy {
-    fn name(&self) -> String {
-        format!("{} ({})", self.state.run_id, self.state.algo)
-    }
-
-    fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
-        let out = env.output();
-        for (b, batch) in out.behaviours.iter().enumerate() {
-            if !env.awaiting(b) {
-                continue;
-            }
-            let n = batch.n_agents;
-            let grid = Tensor::<4>::from_data(
-                TensorData::new(
-                    batch.grids.clone(),
-                    [n, STACKED_CHANNELS, EL_CELLS, AZ_CELLS],
-                ),
-                &self.dev,
-            );
-            let vector = Tensor::<2>::from_data(
-                TensorData::new(batch.vectors.clone(), [n, VECTOR_OBS]),
-                &self.dev,
-            );
-            let (mean, log_std) = self.models[b].actor(grid, vector);
-            let mean = mean
-                .into_data()
-                .try_into_vec::<f32>()
-                .map_err(|e| format!("{e:?}"))?;
-            let log_std = log_std
-                .into_data()
-                .try_into_vec::<f32>()
-                .map_err(|e| format!("{e:?}"))?;
-            let dst = &mut actions[b];
-            dst.resize(n * ACTIONS, 0.0);
-            for a in 0..n {
-                let mut noise = Stream::new(
-                    self.seed,
-                    Purpose::Exploration,
-                    (batch.first + a) as u64,
-                    out.tick,
-                );
-                for k in 0..ACTIONS {
-                    let mu = mean[a * ACTIONS + k];
-                    let x = if self.deterministic {
-                        mu
-                    } else {
-                        mu + log_std[k].exp() * noise.normal()
-                    };
-                    dst[a * ACTIONS + k] = x.clamp(-1.0, 1.0);
-                }
+        tick: u64,
+    ) -> Vec<f32> {
+        let mut out = self.mean(grids, vectors);
+        for (a, act) in out.chunks_mut(ACTIONS).enumerate() {
+            let mut noise = Stream::new(seed, Purpose::Exploration, (first + a) as u64, tick);
+            for (k, x) in act.iter_mut().enumerate() {
+                *x = (*x + self.log_std[k].exp() * noise.normal()).clamp(-1.0, 1.0);
             }
         }
-        Ok(())
+        out
     }
+
+    fn onnx(&self, meta: &Metadata) -> Vec<u8> {
+        let log_std = self.model.log_std.val();
+        export_policy(
+            &self.model.actor_body,
+            Head::Gaussian {
+                mean: &self.model.actor_mean,
+                log_std: &log_std,
+            },
+            meta,
+        )
+    }
+}
+
+/// Behaviour `source` of a PPO policy folder as an [`Actor`].
+pub fn load_actor(dir: &Path, state: &RunState, source: &BehaviourState) -> Result<Box<dyn Actor>> {
+    Ok(Box::new(PpoActor::load(dir, state, source)?))
 }

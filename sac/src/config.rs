@@ -3,7 +3,7 @@
 //! and missing keys take the documented defaults.
 
 use deepfoids_env::config::{ConfigError, read_toml};
-use deepfoids_env::{ConfigDirs, Phase, Scene};
+use deepfoids_env::{ConfigDirs, Phase};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -51,6 +51,9 @@ pub struct SacConfig {
     pub checkpoint_every: u64,
     /// Checkpoints kept (older ones are deleted).
     pub keep_checkpoints: usize,
+    /// A progress line every this many agent decisions of a behaviour when
+    /// stdout is not a terminal (ML-Agents' `summary_freq`). 50,000.
+    pub progress_every: u64,
     /// Agent decisions per species, `[pretraining, transfer]` (thesis §4.5.2).
     pub budgets: BTreeMap<String, [u64; 2]>,
 }
@@ -76,6 +79,7 @@ impl Default for SacConfig {
             summary_every: 10_240,
             checkpoint_every: 100_000,
             keep_checkpoints: 2,
+            progress_every: 50_000,
             budgets: BTreeMap::from([
                 ("coho".to_string(), [4_000_000, 1_000_000]),
                 ("yellowtail".to_string(), [2_000_000, 2_000_000]),
@@ -144,10 +148,10 @@ impl SacConfig {
         if !(lo < hi && lo.is_finite() && hi.is_finite()) {
             return bad("log_std_bounds", "must be [low, high] with low < high");
         }
-        if self.checkpoint_every == 0 || self.summary_every == 0 {
+        if self.checkpoint_every == 0 || self.summary_every == 0 || self.progress_every == 0 {
             return bad(
                 "checkpoint_every",
-                "checkpoint_every and summary_every must be at least 1",
+                "checkpoint_every, summary_every and progress_every must be at least 1",
             );
         }
         Ok(())
@@ -161,14 +165,11 @@ impl SacConfig {
         self.init_entropy_coef[phase_index(phase)]
     }
 
-    /// The thesis' budget for a scene and phase: the largest of its species' budgets.
-    pub fn budget(&self, scene: &Scene, phase: Phase) -> u64 {
-        scene
-            .species_names()
-            .iter()
-            .filter_map(|s| self.budgets.get(s).map(|b| b[phase_index(phase)]))
-            .max()
-            .unwrap_or(2_000_000)
+    /// The thesis' budget of a behaviour of `species` in `phase` (its own agent decisions).
+    pub fn budget(&self, species: &str, phase: Phase) -> u64 {
+        self.budgets
+            .get(species)
+            .map_or(2_000_000, |b| b[phase_index(phase)])
     }
 }
 

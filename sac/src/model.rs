@@ -15,7 +15,10 @@
 use burn::nn::{Linear, LinearConfig};
 use burn::prelude::*;
 use burn::tensor::activation::softplus;
-use deepfoids_ppo::model::{ACTIONS, Body, BodyConfig};
+use deepfoids_learn::body::{infer_net, small_linear};
+use deepfoids_learn::kernels::dense::DensePack;
+use deepfoids_learn::kernels::infer::InferNet;
+use deepfoids_learn::{ACTIONS, Body, BodyConfig, Grids};
 
 const HALF_LOG_2PI: f32 = 0.918_938_5;
 const LN_2: f32 = std::f32::consts::LN_2;
@@ -27,9 +30,6 @@ pub struct SacNetConfig {
     pub hidden: usize,
     #[config(default = 4)]
     pub layers: usize,
-    /// Use the GEMM convolutions (see `deepfoids_ppo::model::conv1_gemm`).
-    #[config(default = true)]
-    pub gemm_conv: bool,
     #[config(default = -5.0)]
     pub log_std_min: f32,
     #[config(default = 2.0)]
@@ -41,15 +41,14 @@ impl SacNetConfig {
         BodyConfig::new()
             .with_hidden(self.hidden)
             .with_layers(self.layers)
-            .with_gemm_conv(self.gemm_conv)
             .with_extra_inputs(extra_inputs)
     }
 
     pub fn init_actor(&self, device: &Device) -> Actor {
         Actor {
             body: self.body(0).init(device),
-            mean: small_linear(self.hidden, ACTIONS, device),
-            log_std: small_linear(self.hidden, ACTIONS, device),
+            mean: small_linear(self.hidden, ACTIONS, 0.01, device),
+            log_std: small_linear(self.hidden, ACTIONS, 0.01, device),
             log_std_min: self.log_std_min,
             log_std_max: self.log_std_max,
         }
@@ -64,29 +63,6 @@ impl SacNetConfig {
     }
 }
 
-/// A linear layer with weights scaled by 0.01 and a zero bias. The new values
-/// are leaves (detached, requiring gradients where the old ones did).
-fn small_linear(d_in: usize, d_out: usize, device: &Device) -> Linear {
-    let mut l = LinearConfig::new(d_in, d_out).init(device);
-    let leaf = |t: Tensor<2>| {
-        let grad = t.is_require_grad();
-        let t = t.mul_scalar(0.01).detach();
-        if grad { t.require_grad() } else { t }
-    };
-    l.weight = l.weight.map(leaf);
-    l.bias = l.bias.map(|b| {
-        b.map(|t| {
-            let z = t.zeros_like();
-            if t.is_require_grad() {
-                z.require_grad()
-            } else {
-                z
-            }
-        })
-    });
-    l
-}
-
 #[derive(Module, Debug)]
 pub struct Actor {
     pub body: Body,
@@ -98,13 +74,61 @@ pub struct Actor {
 
 impl Actor {
     /// The Gaussian's mean and log-std, both `[B, 3]`, before squashing.
-    pub fn forward(&self, grid: Tensor<4>, vector: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
-        let h = self.body.forward(grid, vector);
+    pub fn forward(&self, grids: &Grids, vector: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+        self.heads(self.body.forward(grids, vector))
+    }
+
+    /// The same on Burn's own layers (the kernels' reference).
+    pub fn forward_reference(&self, grid: Tensor<4>, vector: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+        let b = &self.body;
+        self.heads(b.trunk_reference(b.encode_reference(grid), vector))
+    }
+
+    fn heads(&self, h: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
         let mean = self.mean.forward(h.clone());
         let t = self.log_std.forward(h).tanh();
         let (lo, hi) = (self.log_std_min, self.log_std_max);
         let log_std = (t + 1.0).mul_scalar(0.5 * (hi - lo)) + lo;
         (mean, log_std)
+    }
+
+    /// The log-std bounds `[lo, hi]`.
+    pub fn bounds(&self) -> [f32; 2] {
+        [self.log_std_min, self.log_std_max]
+    }
+
+    /// Both heads side by side (`[hidden, 6]`: mean, then raw log-std) for the
+    /// fused forward.
+    pub fn head_pack(&self) -> DensePack {
+        let (m, s) = (
+            deepfoids_learn::body::dense_pack(&self.mean),
+            deepfoids_learn::body::dense_pack(&self.log_std),
+        );
+        let mut w = Vec::with_capacity(m.d_in * 2 * ACTIONS);
+        for i in 0..m.d_in {
+            w.extend_from_slice(&m.w[i * ACTIONS..(i + 1) * ACTIONS]);
+            w.extend_from_slice(&s.w[i * ACTIONS..(i + 1) * ACTIONS]);
+        }
+        DensePack {
+            d_in: m.d_in,
+            d_out: 2 * ACTIONS,
+            w,
+            b: [m.b, s.b].concat(),
+        }
+    }
+
+    /// The actor for the fused forward: `[n, 6]` per sample, the mean and the
+    /// raw log-std head (squash it with [`Actor::squash_log_std`]).
+    pub fn infer_net(&self) -> InferNet {
+        let mut net = infer_net(&[(&self.body, None)]);
+        net.trunks[0].head = Some(self.head_pack());
+        net
+    }
+
+    /// The raw log-std head's value → log σ in the bounds.
+    pub fn squash_log_std(&self, raw: f32) -> f32 {
+        let (lo, hi) = (self.log_std_min, self.log_std_max);
+        lo + 0.5 * (hi - lo) * (raw.tanh() + 1.0)
     }
 }
 
@@ -116,8 +140,8 @@ pub struct QNet {
 
 impl QNet {
     /// `Q(s, a)` `[B]`.
-    pub fn forward(&self, grid: Tensor<4>, vector: Tensor<2>, action: Tensor<2>) -> Tensor<1> {
-        self.from_encoded(self.body.encode(grid), vector, action)
+    pub fn forward(&self, grids: &Grids, vector: Tensor<2>, action: Tensor<2>) -> Tensor<1> {
+        self.from_encoded(self.body.encode(grids), vector, action)
     }
 
     /// `Q(s, a)` `[B]` from the grid already encoded by [`Body::encode`].
@@ -144,20 +168,26 @@ pub struct TwinQ {
 impl TwinQ {
     pub fn forward(
         &self,
-        grid: Tensor<4>,
+        grids: &Grids,
         vector: Tensor<2>,
         action: Tensor<2>,
     ) -> (Tensor<1>, Tensor<1>) {
-        (
-            self.q1
-                .forward(grid.clone(), vector.clone(), action.clone()),
-            self.q2.forward(grid, vector, action),
-        )
+        self.from_encoded(self.encode(grids), vector, action)
     }
 
-    /// Both critics' encodings of the grid.
-    pub fn encode(&self, grid: Tensor<4>) -> (Tensor<2>, Tensor<2>) {
-        (self.q1.body.encode(grid.clone()), self.q2.body.encode(grid))
+    /// Both critics' encodings of the grids (read once for both).
+    pub fn encode(&self, grids: &Grids) -> (Tensor<2>, Tensor<2>) {
+        let mut e = Body::encode_many(&[&self.q1.body, &self.q2.body], grids);
+        (e.remove(0), e.remove(0))
+    }
+
+    /// Both critics for the fused forward (`[n, 1]` each; the action enters
+    /// as the trunk's extra input).
+    pub fn infer_net(&self) -> InferNet {
+        infer_net(&[
+            (&self.q1.body, Some(&self.q1.head)),
+            (&self.q2.body, Some(&self.q2.head)),
+        ])
     }
 
     /// Both `Q(s, a)` from the grid's encodings.
@@ -408,11 +438,12 @@ mod tests {
         let critic = cfg.init_critic(&dev);
         let grid = Tensor::<4>::zeros([2, 18, 20, 34], &dev);
         let vector = Tensor::<2>::zeros([2, 6], &dev);
-        let (m, s) = actor.forward(grid.clone(), vector.clone());
+        let grids = Grids::Dense(grid);
+        let (m, s) = actor.forward(&grids, vector.clone());
         assert_eq!(m.dims(), [2, 3]);
         let s = s.into_data().try_to_vec::<f32>().unwrap();
         assert!(s.iter().all(|x| (x + 1.5).abs() < 0.1), "{s:?}");
-        let (q1, q2) = critic.forward(grid, vector, Tensor::zeros([2, 3], &dev));
+        let (q1, q2) = critic.forward(&grids, vector, Tensor::zeros([2, 3], &dev));
         assert_eq!(q1.dims(), [2]);
         assert_eq!(q2.dims(), [2]);
     }

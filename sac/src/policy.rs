@@ -1,132 +1,112 @@
-//! A trained SAC actor driving a scene (the environment's [`Policy`]): acts with
-//! `tanh(μ)` (deterministic, the default) or samples `tanh(μ + σ·ε)`.
+//! A trained SAC actor: acting on the fused kernels (deterministic `tanh(μ)`,
+//! sampled `tanh(μ + σ(s)·ε)`), its reference on Burn's layers, and its ONNX
+//! export.
 
-use crate::model::{Actor, SacNetConfig, squashed_sample_f32};
-use crate::train::{SacExtra, net_config};
-use anyhow::{Context, Result};
+use crate::model::{Actor as SacNet, squashed_sample_f32};
+use crate::train::{SacState, actor_file, net_config, state_file};
 use burn::prelude::*;
+use deepfoids_env::VECTOR_OBS;
 use deepfoids_env::rng::{Purpose, Stream};
-use deepfoids_env::{Env, Policy, PolicyError, VECTOR_OBS};
-use deepfoids_ppo::Backend;
-use deepfoids_ppo::checkpoint::{RunState, policy_dir};
-use deepfoids_ppo::model::ACTIONS;
-use deepfoids_ppo::train::{tensor2, tensor4, to_vec};
-use std::path::{Path, PathBuf};
+use deepfoids_learn::checkpoint::{BehaviourState, RunState, load_json, load_module};
+use deepfoids_learn::kernels::encoder::GridsRef;
+use deepfoids_learn::kernels::infer::InferNet;
+use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::policy::Actor;
+use deepfoids_learn::tensor::{tensor2, tensor4, to_vec};
+use deepfoids_learn::{ACTIONS, Algorithm, Result};
+use std::path::Path;
 
-pub struct SacPolicy {
-    actors: Vec<Actor>,
-    dev: Device,
-    pub deterministic: bool,
-    pub seed: u64,
-    pub source: PathBuf,
-    pub state: RunState,
+/// One behaviour's trained SAC actor.
+pub struct SacActor {
+    pub actor: SacNet,
+    net: InferNet,
 }
 
-/// Load the actor of behaviour `name` (or of one of the same species) from a policy folder.
-pub fn load_actor(
-    dir: &Path,
-    state: &RunState,
-    name: &str,
-    species: &str,
-    actor: Actor,
-) -> Result<Actor> {
-    let source = state
-        .behaviour(name)
-        .or_else(|| state.behaviours.iter().find(|b| b.species == species))
-        .with_context(|| {
-            format!(
-                "{} has no policy for behaviour {name} or species {species}; it has: {}",
-                dir.display(),
-                state
-                    .behaviours
-                    .iter()
-                    .map(|b| b.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        })?;
-    let file = RunState::model_file(dir, &source.name);
-    actor
-        .try_load_file(&file)
-        .map_err(|e| anyhow::anyhow!("cannot load {}: {e:?}", file.display()))
+impl SacActor {
+    pub fn new(actor: SacNet) -> Self {
+        Self {
+            net: actor.infer_net(),
+            actor,
+        }
+    }
+
+    /// Behaviour `source` of the SAC policy folder `dir` (state `state`).
+    pub fn load(dir: &Path, state: &RunState, source: &BehaviourState) -> Result<Self> {
+        RunState::load_policy(dir, Algorithm::Sac, "a SAC actor is loaded")?;
+        let st: SacState = load_json(&state_file(dir, &source.name), "SAC's state")?;
+        let net = net_config(state.hidden, state.layers, st.log_std_bounds);
+        let actor = load_module(
+            net.init_actor(&Device::flex()),
+            &actor_file(dir, &source.name),
+        )?;
+        Ok(Self::new(actor))
+    }
+
+    /// The mean and raw log-std `[n, 6]` (fused forward).
+    fn heads(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+        self.net.forward(GridsRef::Dense(grids), vectors).remove(0)
+    }
 }
 
-impl SacPolicy {
-    /// Load the actors of a SAC run (its `final/`, or checkpoint `step`) for the behaviours of `env`.
-    pub fn load(
-        run: &Path,
-        step: Option<u64>,
-        env: &Env,
-        backend: Backend,
-        deterministic: bool,
+impl Actor for SacActor {
+    fn deterministic(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+        self.heads(grids, vectors)
+            .chunks_exact(2 * ACTIONS)
+            .flat_map(|row| row[..ACTIONS].iter().map(|x| x.tanh()))
+            .collect()
+    }
+
+    fn deterministic_reference(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+        let n = vectors.len() / VECTOR_OBS;
+        let dev = Device::flex();
+        let (mean, _) = self.actor.forward_reference(
+            tensor4(grids.to_vec(), n, &dev),
+            tensor2(vectors.to_vec(), n, VECTOR_OBS, &dev),
+        );
+        to_vec(mean.tanh())
+    }
+
+    fn sample(
+        &self,
+        grids: &[f32],
+        vectors: &[f32],
+        first: usize,
         seed: u64,
-    ) -> Result<Self> {
-        let dir = policy_dir(run, step)?;
-        let state = RunState::load(&dir)?;
-        if state.algo != "sac" {
-            anyhow::bail!("{} holds a {} policy, not SAC", dir.display(), state.algo);
+        tick: u64,
+    ) -> Vec<f32> {
+        let heads = self.heads(grids, vectors);
+        let mut out = vec![0.0; heads.len() / 2];
+        for (a, row) in heads.chunks_exact(2 * ACTIONS).enumerate() {
+            let mut noise = Stream::new(seed, Purpose::Exploration, (first + a) as u64, tick);
+            let eps = [noise.normal(), noise.normal(), noise.normal()];
+            let log_std: Vec<f32> = row[ACTIONS..]
+                .iter()
+                .map(|&x| self.actor.squash_log_std(x))
+                .collect();
+            squashed_sample_f32(
+                &row[..ACTIONS],
+                &log_std,
+                &eps,
+                &mut out[a * ACTIONS..(a + 1) * ACTIONS],
+            );
         }
-        let extra = SacExtra::load(&dir)?;
-        let cfg: SacNetConfig =
-            net_config(state.hidden, state.layers, extra.log_std_bounds, backend);
-        let dev = backend.device();
-        let actors = env
-            .behaviours()
-            .iter()
-            .map(|b| load_actor(&dir, &state, &b.name, &b.species, cfg.init_actor(&dev)))
-            .collect::<Result<Vec<_>>>()?;
-        Ok(Self {
-            actors,
-            dev,
-            deterministic,
-            seed,
-            source: dir,
-            state,
-        })
+        out
     }
 
-    pub fn actor(&self, b: usize) -> &Actor {
-        &self.actors[b]
+    fn onnx(&self, meta: &Metadata) -> Vec<u8> {
+        export_policy(
+            &self.actor.body,
+            Head::Squashed {
+                mean: &self.actor.mean,
+                log_std: &self.actor.log_std,
+                bounds: self.actor.bounds(),
+            },
+            meta,
+        )
     }
 }
 
-impl Policy for SacPolicy {
-    fn name(&self) -> String {
-        format!("{} (sac)", self.state.run_id)
-    }
-
-    fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
-        let out = env.output();
-        for (b, batch) in out.behaviours.iter().enumerate() {
-            if !env.awaiting(b) {
-                continue;
-            }
-            let n = batch.n_agents;
-            let (mean, log_std) = self.actors[b].forward(
-                tensor4(batch.grids.clone(), n, &self.dev),
-                tensor2(batch.vectors.clone(), n, VECTOR_OBS, &self.dev),
-            );
-            let (mean, log_std) = (to_vec(mean), to_vec(log_std));
-            let dst = &mut actions[b];
-            dst.resize(n * ACTIONS, 0.0);
-            for a in 0..n {
-                let r = a * ACTIONS..(a + 1) * ACTIONS;
-                if self.deterministic {
-                    for k in r.clone() {
-                        dst[k] = mean[k].tanh();
-                    }
-                } else {
-                    let mut noise = Stream::new(
-                        self.seed,
-                        Purpose::Exploration,
-                        (batch.first + a) as u64,
-                        out.tick,
-                    );
-                    let eps = [noise.normal(), noise.normal(), noise.normal()];
-                    squashed_sample_f32(&mean[r.clone()], &log_std[r.clone()], &eps, &mut dst[r]);
-                }
-            }
-        }
-        Ok(())
-    }
+/// Behaviour `source` of a SAC policy folder as an [`Actor`].
+pub fn load_actor(dir: &Path, state: &RunState, source: &BehaviourState) -> Result<Box<dyn Actor>> {
+    Ok(Box::new(SacActor::load(dir, state, source)?))
 }

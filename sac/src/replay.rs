@@ -11,10 +11,10 @@
 //! (a new episode's stack starts with zeros, SPEC §7); older frames are zeros.
 //!
 //! # Quantisation and size
-//! A frame is `[proximity, fish, net, surface, obstacle, chase partner]` over
-//! 20 × 34 cells; the five type channels are one-hot, so a cell is stored as
-//! two bytes: the proximity as `round(255·p)` (error ≤ 1/510) and the index of
-//! the hot channel (0 for none), rebuilt exactly. Per transition:
+//! Frames are stored as `deepfoids_learn::frames` quantises them: two bytes a
+//! cell, the proximity (error ≤ 1/510) and the index of the hot type channel
+//! (exact). Sampled stacks stay quantised ([`CompactGrids`]): the encoder
+//! kernels read them as they are. Per transition:
 //!
 //! | part | bytes |
 //! |---|---|
@@ -29,21 +29,23 @@
 //! rows of history before the oldest sampled one, and the newest row, whose
 //! transition is not complete yet.
 
-use anyhow::{Context, Result, bail};
 use deepfoids_env::VECTOR_OBS;
-use deepfoids_ppo::model::ACTIONS;
-use deepfoids_sensors::{CELLS, CHANNELS, FRAME_LEN, STACK, STACKED_LEN};
+use deepfoids_learn::ACTIONS;
+use deepfoids_learn::frames::{
+    CompactGrids, FRAME_BYTES, STACK_BYTES, dequantise, quantise_newest,
+};
+use deepfoids_learn::{LearnError, Result};
+use deepfoids_sensors::{FRAME_LEN, STACK, STACKED_LEN};
 use rayon::prelude::*;
 use std::io::{Read, Write};
 use std::path::Path;
 
+pub use deepfoids_learn::frames::PROXIMITY_TOLERANCE;
+
 /// Bytes stored per transition (see the module documentation).
-pub const BYTES_PER_TRANSITION: usize = 2 * CELLS + 4 * VECTOR_OBS + 4 * ACTIONS + 4 + 1 + 1;
+pub const BYTES_PER_TRANSITION: usize = FRAME_BYTES + 4 * VECTOR_OBS + 4 * ACTIONS + 4 + 1 + 1;
 
-/// Largest error of a rebuilt proximity value: 1/510, plus f32 rounding.
-pub const PROXIMITY_TOLERANCE: f32 = 0.5 / 255.0 + 1e-6;
-
-const MAGIC: &[u8; 8] = b"DFREPLY1";
+const MAGIC: &[u8; 8] = b"DFREPLY2";
 
 /// The history of an agent's next stack: 0 after a respawn (the stack restarts
 /// with zeros, SPEC §7), else one more older frame, at most two.
@@ -51,16 +53,16 @@ pub fn next_history(history: u8, terminated: bool) -> u8 {
     if terminated { 0 } else { (history + 1).min(2) }
 }
 
-/// A sampled minibatch, as flat f32 buffers ready for tensors.
+/// A sampled minibatch: quantised stacks and flat f32 buffers.
 #[derive(Default)]
 pub struct Batch {
     pub len: usize,
-    pub grids: Vec<f32>,
+    pub grids: CompactGrids,
     pub vectors: Vec<f32>,
     pub actions: Vec<f32>,
     pub rewards: Vec<f32>,
     pub terminated: Vec<bool>,
-    pub next_grids: Vec<f32>,
+    pub next_grids: CompactGrids,
     pub next_vectors: Vec<f32>,
 }
 
@@ -69,8 +71,8 @@ pub struct Replay {
     rows: usize,
     /// Rows written so far (absolute); row `t` lives in slot `t % rows`.
     head: u64,
-    proximity: Vec<u8>,
-    kind: Vec<u8>,
+    /// Quantised frames, `FRAME_BYTES` per slot.
+    frames: Vec<u8>,
     vectors: Vec<f32>,
     actions: Vec<f32>,
     rewards: Vec<f32>,
@@ -91,8 +93,7 @@ impl Replay {
             agents,
             rows,
             head: 0,
-            proximity: vec![0; slots * CELLS],
-            kind: vec![0; slots * CELLS],
+            frames: vec![0; slots * FRAME_BYTES],
             vectors: vec![0.0; slots * VECTOR_OBS],
             actions: vec![0.0; slots * ACTIONS],
             rewards: vec![0.0; slots],
@@ -109,8 +110,7 @@ impl Replay {
 
     /// Bytes held by the buffer's storage (its resident size once filled).
     pub fn bytes(&self) -> usize {
-        self.proximity.len()
-            + self.kind.len()
+        self.frames.len()
             + 4 * (self.vectors.len() + self.actions.len() + self.rewards.len())
             + self.terminated.len()
             + self.history.len()
@@ -174,13 +174,10 @@ impl Replay {
         self.rewarded[s] = false;
         self.linked[s] = false;
         let at = s * n;
-        self.proximity[at * CELLS..(at + n) * CELLS]
-            .par_chunks_mut(CELLS)
-            .zip(self.kind[at * CELLS..(at + n) * CELLS].par_chunks_mut(CELLS))
-            .zip(grids.par_chunks(STACKED_LEN))
-            .for_each(|((prox, kind), stack)| {
-                quantise(&stack[(STACK - 1) * FRAME_LEN..], prox, kind)
-            });
+        quantise_newest(
+            grids,
+            &mut self.frames[at * FRAME_BYTES..(at + n) * FRAME_BYTES],
+        );
         self.vectors[at * VECTOR_OBS..(at + n) * VECTOR_OBS].copy_from_slice(vectors);
         self.actions[at * ACTIONS..(at + n) * ACTIONS].copy_from_slice(actions);
         self.history[at..at + n].copy_from_slice(history);
@@ -204,21 +201,30 @@ impl Replay {
         self.rewarded[s] = true;
     }
 
-    /// Rebuild the stacked observation `[18, 20, 34]` of agent `a` at `row` into `out`.
-    pub fn stack_into(&self, row: u64, a: usize, out: &mut [f32]) {
+    /// The quantised stacked observation of agent `a` at `row` into `out`
+    /// (`STACK_BYTES`): frames oldest first, zero bytes where the stack had none.
+    pub fn stack_bytes_into(&self, row: u64, a: usize, out: &mut [u8]) {
         let hist = self.history[self.slot(row) * self.agents + a] as usize;
         for k in 0..STACK {
-            let dst = &mut out[k * FRAME_LEN..(k + 1) * FRAME_LEN];
+            let dst = &mut out[k * FRAME_BYTES..(k + 1) * FRAME_BYTES];
             let back = (STACK - 1 - k) as u64;
             if back as usize > hist {
-                dst.fill(0.0);
+                dst.fill(0);
                 continue;
             }
-            let at = (self.slot(row - back) * self.agents + a) * CELLS;
+            let at = (self.slot(row - back) * self.agents + a) * FRAME_BYTES;
+            dst.copy_from_slice(&self.frames[at..at + FRAME_BYTES]);
+        }
+    }
+
+    /// Rebuild the stacked observation `[18, 20, 34]` of agent `a` at `row` into `out`.
+    pub fn stack_into(&self, row: u64, a: usize, out: &mut [f32]) {
+        let mut bytes = vec![0u8; STACK_BYTES];
+        self.stack_bytes_into(row, a, &mut bytes);
+        for k in 0..STACK {
             dequantise(
-                &self.proximity[at..at + CELLS],
-                &self.kind[at..at + CELLS],
-                dst,
+                &bytes[k * FRAME_BYTES..(k + 1) * FRAME_BYTES],
+                &mut out[k * FRAME_LEN..(k + 1) * FRAME_LEN],
             );
         }
     }
@@ -242,15 +248,16 @@ impl Replay {
             })
             .collect();
         out.len = size;
-        out.grids.resize(size * STACKED_LEN, 0.0);
-        out.next_grids.resize(size * STACKED_LEN, 0.0);
+        out.grids.bytes.resize(size * STACK_BYTES, 0);
+        out.next_grids.bytes.resize(size * STACK_BYTES, 0);
         out.grids
-            .par_chunks_mut(STACKED_LEN)
-            .zip(out.next_grids.par_chunks_mut(STACKED_LEN))
+            .bytes
+            .par_chunks_mut(STACK_BYTES)
+            .zip(out.next_grids.bytes.par_chunks_mut(STACK_BYTES))
             .zip(picks.par_iter())
             .for_each(|((g, ng), &(t, a))| {
-                self.stack_into(t, a, g);
-                self.stack_into(t + 1, a, ng);
+                self.stack_bytes_into(t, a, g);
+                self.stack_bytes_into(t + 1, a, ng);
             });
         out.vectors.clear();
         out.next_vectors.clear();
@@ -270,15 +277,17 @@ impl Replay {
 
     /// Write the buffer to `path` (inside a checkpoint folder being written atomically).
     pub fn save(&self, path: &Path) -> Result<()> {
-        let file = std::fs::File::create(path)
-            .with_context(|| format!("cannot create {}", path.display()))?;
+        self.write(path).map_err(LearnError::io(path))
+    }
+
+    fn write(&self, path: &Path) -> std::io::Result<()> {
+        let file = std::fs::File::create(path)?;
         let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
         w.write_all(MAGIC)?;
         for x in [self.agents as u64, self.rows as u64, self.head] {
             w.write_all(&x.to_le_bytes())?;
         }
-        w.write_all(&self.proximity)?;
-        w.write_all(&self.kind)?;
+        w.write_all(&self.frames)?;
         for xs in [&self.vectors, &self.actions, &self.rewards] {
             for x in xs.iter() {
                 w.write_all(&x.to_le_bytes())?;
@@ -293,16 +302,17 @@ impl Replay {
             .map(|(&r, &l)| r as u8 | (l as u8) << 1)
             .collect();
         w.write_all(&flags)?;
-        w.flush()?;
-        Ok(())
+        w.flush()
     }
 
     /// Read a buffer written by [`save`](Self::save); it must match `capacity` and `agents`.
     pub fn load(path: &Path, capacity: usize, agents: usize) -> Result<Self> {
-        let file =
-            std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        let file = std::fs::File::open(path).map_err(LearnError::io(path))?;
         let mut r = std::io::BufReader::with_capacity(1 << 20, file);
-        let bad = |what: &str| anyhow::anyhow!("{} is not a replay buffer: {what}", path.display());
+        let bad = |what: &str| LearnError::Corrupt {
+            path: path.to_path_buf(),
+            reason: format!("not a replay buffer of this version: {what}"),
+        };
         let mut magic = [0u8; 8];
         r.read_exact(&mut magic).map_err(|_| bad("too short"))?;
         if &magic != MAGIC {
@@ -316,18 +326,19 @@ impl Replay {
         let (n, rows, head) = (word()? as usize, word()? as usize, word()?);
         let mut buf = Self::new(capacity, agents);
         if n != agents || rows != buf.rows {
-            bail!(
-                "{}: the replay buffer holds {n} agents × {rows} rows, the run needs {agents} × {} (buffer_size changed?)",
-                path.display(),
-                buf.rows
-            );
+            return Err(LearnError::Corrupt {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "the replay buffer holds {n} agents × {rows} rows, the run needs {agents} × {} (buffer_size changed?)",
+                    buf.rows
+                ),
+            });
         }
         buf.head = head;
         let read = |r: &mut dyn Read, dst: &mut [u8]| -> Result<()> {
             r.read_exact(dst).map_err(|_| bad("truncated"))
         };
-        read(&mut r, &mut buf.proximity)?;
-        read(&mut r, &mut buf.kind)?;
+        read(&mut r, &mut buf.frames)?;
         for xs in [&mut buf.vectors, &mut buf.actions, &mut buf.rewards] {
             let mut bytes = vec![0u8; xs.len() * 4];
             read(&mut r, &mut bytes)?;
@@ -347,33 +358,10 @@ impl Replay {
     }
 }
 
-/// Frame `[6, 20, 34]` floats → proximity and type bytes.
-fn quantise(frame: &[f32], prox: &mut [u8], kind: &mut [u8]) {
-    for c in 0..CELLS {
-        prox[c] = (frame[c].clamp(0.0, 1.0) * 255.0).round() as u8;
-        kind[c] = (1..CHANNELS)
-            .find(|&k| frame[k * CELLS + c] > 0.5)
-            .unwrap_or(0) as u8;
-    }
-}
-
-/// Proximity and type bytes → frame `[6, 20, 34]` floats.
-fn dequantise(prox: &[u8], kind: &[u8], frame: &mut [f32]) {
-    let (p, types) = frame.split_at_mut(CELLS);
-    for (dst, &q) in p.iter_mut().zip(prox) {
-        *dst = q as f32 * (1.0 / 255.0);
-    }
-    for (k, channel) in types.chunks_exact_mut(CELLS).enumerate() {
-        let k = k as u8 + 1;
-        for (v, &kd) in channel.iter_mut().zip(kind) {
-            *v = (kd == k) as u8 as f32;
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use deepfoids_sensors::CELLS;
 
     /// A stack whose newest frame encodes `(row, agent)`: proximity `(r + a)/100`
     /// in cell 0, type `1 + (r + a) % 5` there; the older frames are arbitrary.
@@ -448,14 +436,16 @@ mod tests {
                 ((t + 1) * 10) as f32 + (a * VECTOR_OBS) as f32
             );
             // The stack is frames t−2, t−1, t of the same agent.
-            let g = &batch.grids[i * STACKED_LEN..(i + 1) * STACKED_LEN];
+            let dense = batch.grids.to_dense();
+            let g = &dense[i * STACKED_LEN..(i + 1) * STACKED_LEN];
             for k in 0..STACK {
                 let want = ((t as usize - 2 + k) + a) % 100;
                 let frame = &g[k * FRAME_LEN..(k + 1) * FRAME_LEN];
                 assert!((frame[0] - want as f32 / 100.0).abs() <= PROXIMITY_TOLERANCE);
                 assert_eq!(frame[(1 + want % 5) * CELLS], 1.0);
             }
-            let ng = &batch.next_grids[i * STACKED_LEN..(i + 1) * STACKED_LEN];
+            let next = batch.next_grids.to_dense();
+            let ng = &next[i * STACKED_LEN..(i + 1) * STACKED_LEN];
             let want = ((t as usize + 1) + a) % 100;
             assert!(
                 (ng[2 * FRAME_LEN] - want as f32 / 100.0).abs() <= PROXIMITY_TOLERANCE,
@@ -499,7 +489,7 @@ mod tests {
         let c = Replay::load(&path, 6, 2).unwrap();
         assert_eq!(c.head, b.head);
         assert_eq!(c.len(), b.len());
-        assert_eq!(c.proximity, b.proximity);
+        assert_eq!(c.frames, b.frames);
         assert_eq!(c.rewards, b.rewards);
         assert_eq!(c.linked, b.linked);
         let e = Replay::load(&path, 60, 2).err().unwrap().to_string();

@@ -1,6 +1,8 @@
-//! SAC training, read top to bottom as CleanRL's `sac_continuous_action.py`:
-//! arguments → environment → agents → loop of (act → step → store → updates →
-//! log → checkpoint).
+//! SAC, read top to bottom as CleanRL's `sac_continuous_action.py`:
+//! hyperparameters → agent → at each decision (store the reward → updates due
+//! → act and store) → update (targets → critic loss → actor loss → α →
+//! Polyak) → log. The run itself (environment loop, budgets, resume,
+//! transfer, checkpoints, logs) is `deepfoids_learn::driver`'s.
 //!
 //! # Choices
 //! * One actor, twin critics, target critics, two Adams (ε 1e−8) and one
@@ -9,133 +11,118 @@
 //! * Acting: `a = tanh(μ + σ·ε)`, ε from the counter-based stream keyed by
 //!   `(seed, fish, tick)`; also before `learning_starts` (the untrained policy
 //!   collects the first transitions, as in ML-Agents; CleanRL acts uniformly).
+//!   The actor acts on the fused kernels (no autodiff).
 //! * Updates: once a behaviour has `learning_starts` agent steps, it makes
 //!   `floor((steps − learning_starts) / steps_per_update)` gradient updates in
 //!   all, each right after the decision that makes one due (with 1,000 fish and
 //!   1,000 steps per update: one per decision).
 //! * An update (Haarnoja et al. 2018; Fujimoto et al. 2018): a batch drawn
-//!   uniformly with replacement; critic loss `½·mean((Q_i(s, a) − y)²)` per
-//!   critic with the twin-Q target [`twin_q_target`] (terminated ⇒ no
-//!   bootstrap; truncated ⇒ bootstrap) and the actor loss
+//!   uniformly with replacement; the twin-Q target [`twin_q_target`]
+//!   (terminated ⇒ no bootstrap; truncated ⇒ bootstrap) from the actor and the
+//!   target critics on the fused forward (no autodiff; the next observations'
+//!   grids are convolved once for all three); critic loss
+//!   `½·mean((Q_i(s, a) − y)²)` per critic and the actor loss
 //!   `mean(α·log π(ã|s) − min_i Q_i(s, ã))`, `ã = tanh(μ + σ·ε)`, both from
-//!   the same parameters and stepped together (as Haarnoja et al.'s code; CleanRL
-//!   steps the critics first). The actor's loss reuses the critics' grid
-//!   encodings, detached, with the critics' weights frozen: the action enters
-//!   after the encoder, so each critic encodes a batch once (a third less work
-//!   per update). Then α's loss ([`EntropyCoef`]), then the target critics move
-//!   by `τ` (Polyak).
+//!   the same parameters and stepped together (as Haarnoja et al.'s code;
+//!   CleanRL steps the critics first). The actor's loss reuses the critics'
+//!   grid encodings, detached, with the critics' weights frozen: the action
+//!   enters after the encoder, so each critic encodes a batch once. Then α's
+//!   loss ([`EntropyCoef`]), then the target critics move by `τ` (Polyak).
 //! * Rewards enter raw (−300 for a boundary collision): SAC's critics regress on
 //!   them directly, as in ML-Agents.
 //! * Learning rate constant: 0.001 pretraining, 0.0005 fine tuning (Table 4.5);
 //!   initial α 0.3 pretraining, 0 fine tuning (no entropy term).
-//! * Checkpoints (weights of actor, critics and targets, both Adams, α and its
-//!   Adam, counters and the replay buffer) are written atomically at the first
-//!   decision past each `checkpoint_every` agent steps. A resumed run continues
-//!   with the same buffer, weights and counters, from a reset environment
-//!   reseeded with `seed + resets` (the replay's last transition before the
-//!   reset is never sampled).
+//! * Checkpoints hold the actor, critics and targets, both Adams, α with its
+//!   Adam state and the update count (`<behaviour>.sac.json`), and the replay
+//!   buffer. A resumed run continues with the same buffer, weights and
+//!   counters (the replay's last transition before the reset is never sampled).
 
 use crate::config::SacConfig;
 use crate::model::{
     Actor, EntropyCoef, SacNetConfig, TwinQ, squashed_sample, squashed_sample_f32, twin_q_target,
 };
-use crate::policy::load_actor;
 use crate::replay::{Batch, Replay, next_history};
-use anyhow::{Context, Result, bail};
 use burn::module::{ModuleMapper, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 use deepfoids_env::rng::{Purpose, Stream};
-use deepfoids_env::{BehaviourBatch, Env, Scene, StepOutput, VECTOR_OBS};
-use deepfoids_ppo::checkpoint::{self, BehaviourState, RunState, RunningMeanStd};
-use deepfoids_ppo::logger::Logger;
-use deepfoids_ppo::model::ACTIONS;
-use deepfoids_ppo::stats::EpisodeStats;
-use deepfoids_ppo::train::{ForceInit, Timing, progress_bar, tensor2, tensor4, to_vec};
-use deepfoids_ppo::{Backend, BufferMemory, TrainOutcome};
+use deepfoids_env::{BehaviourBatch, Phase, VECTOR_OBS};
+use deepfoids_learn::checkpoint::{
+    BehaviourState, behaviour_file, load_json, load_module, save_json, save_module,
+};
+use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, RunSettings, StepCtx, Trainer};
+use deepfoids_learn::kernels::encoder::GridsRef;
+use deepfoids_learn::kernels::infer::{InferNet, TrunkInputs};
+use deepfoids_learn::logger::Scalars;
+use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::tensor::{ForceInit, tensor1, tensor2};
+use deepfoids_learn::{ACTIONS, Algorithm, Grids, LearnError, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
-/// What to train, where.
-pub struct SacTrainArgs {
-    pub scene: Scene,
+/// The SAC algorithm with its hyperparameters.
+pub struct Sac {
     pub config: SacConfig,
-    pub run_dir: PathBuf,
-    pub run_id: String,
-    pub seed: u64,
-    /// Agent decisions to train for (all behaviours); default: the thesis' budget.
-    pub steps: Option<u64>,
-    pub resume: bool,
-    /// A SAC run to take the initial weights from (transfer learning).
-    pub init_from: Option<PathBuf>,
-    pub backend: Backend,
-    pub progress: bool,
-    /// Write checkpoints and the final policy (off for benchmarks).
-    pub save: bool,
 }
 
-/// SAC's state besides [`RunState`], saved as `sac.json` next to `state.json`.
+/// SAC's own state of a behaviour, `<behaviour>.sac.json` (final policies too:
+/// the actor's log-std bounds are needed to load it).
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct SacExtra {
+pub struct SacState {
     pub log_std_bounds: [f32; 2],
-    pub behaviours: Vec<SacBehaviour>,
-}
-
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct SacBehaviour {
-    pub name: String,
     pub entropy: EntropyCoef,
+    pub updates: u64,
     /// The checkpoint holds this behaviour's replay buffer.
     pub replay_saved: bool,
 }
 
-impl SacExtra {
-    pub fn save(&self, dir: &Path) -> Result<()> {
-        let text = serde_json::to_string_pretty(self)?;
-        deepfoids_env::io::write_atomic(dir.join("sac.json"), text.as_bytes())?;
-        Ok(())
-    }
-
-    pub fn load(dir: &Path) -> Result<Self> {
-        let path = dir.join("sac.json");
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        serde_json::from_str(&text)
-            .with_context(|| format!("{} is not a SAC state", path.display()))
-    }
-
-    fn behaviour(&self, name: &str) -> Option<&SacBehaviour> {
-        self.behaviours.iter().find(|b| b.name == name)
-    }
+pub fn actor_file(dir: &Path, name: &str) -> PathBuf {
+    behaviour_file(dir, name, "model.bpk")
 }
-
 fn critic_file(dir: &Path, name: &str) -> PathBuf {
-    dir.join(format!("{name}.critic.bpk"))
+    behaviour_file(dir, name, "critic.bpk")
 }
 fn target_file(dir: &Path, name: &str) -> PathBuf {
-    dir.join(format!("{name}.target.bpk"))
+    behaviour_file(dir, name, "target.bpk")
 }
-fn critic_optim_file(dir: &Path, name: &str) -> PathBuf {
-    dir.join(format!("{name}.critic-optim.bpk"))
+pub fn state_file(dir: &Path, name: &str) -> PathBuf {
+    behaviour_file(dir, name, "sac.json")
 }
 fn replay_file(dir: &Path, name: &str) -> PathBuf {
-    dir.join(format!("{name}.replay.bin"))
+    behaviour_file(dir, name, "replay.bin")
 }
 
 /// The networks' configuration for a run.
-pub fn net_config(
-    hidden: usize,
-    layers: usize,
-    bounds: [f32; 2],
-    backend: Backend,
-) -> SacNetConfig {
+pub fn net_config(hidden: usize, layers: usize, bounds: [f32; 2]) -> SacNetConfig {
     SacNetConfig::new()
         .with_hidden(hidden)
         .with_layers(layers)
-        .with_gemm_conv(backend.gemm_conv())
         .with_log_std_min(bounds[0])
         .with_log_std_max(bounds[1])
+}
+
+fn adam(cfg: &SacConfig) -> ModuleOptimizer {
+    AdamConfig::new()
+        .with_epsilon(cfg.adam_epsilon as f32)
+        .init()
+}
+
+fn load_optim(cfg: &SacConfig, file: &Path) -> Result<ModuleOptimizer> {
+    adam(cfg).load(file).map_err(|e| LearnError::Record {
+        action: "load",
+        path: file.to_path_buf(),
+        reason: format!("{e:?}"),
+    })
+}
+
+fn save_optim(optim: &ModuleOptimizer, file: &Path) -> Result<()> {
+    optim.save(file).map_err(|e| LearnError::Record {
+        action: "save",
+        path: file.to_path_buf(),
+        reason: format!("{e:?}"),
+    })
 }
 
 /// Every parameter of a module, flattened, in visiting order.
@@ -174,6 +161,128 @@ pub fn soft_update(target: TwinQ, online: &TwinQ, tau: f32) -> TwinQ {
     })
 }
 
+impl Trainer for Sac {
+    type Learner = SacLearner;
+
+    fn algorithm(&self) -> Algorithm {
+        Algorithm::Sac
+    }
+
+    fn config_name(&self) -> &'static str {
+        "configs/train/sac.toml"
+    }
+
+    fn architecture(&self) -> (usize, usize) {
+        (self.config.hidden, self.config.layers)
+    }
+
+    fn budget(&self, species: &str, phase: Phase) -> u64 {
+        self.config.budget(species, phase)
+    }
+
+    fn settings(&self) -> RunSettings {
+        RunSettings {
+            checkpoint_every: self.config.checkpoint_every,
+            keep_checkpoints: self.config.keep_checkpoints,
+            progress_every: self.config.progress_every,
+        }
+    }
+
+    fn new_learner(&self, ctx: &LearnerCtx<'_>) -> Result<SacLearner> {
+        let cfg = &self.config;
+        let net = net_config(cfg.hidden, cfg.layers, cfg.log_std_bounds);
+        let actor = net.init_actor(&ctx.train_device);
+        actor.visit(&mut ForceInit);
+        let critic = net.init_critic(&ctx.train_device);
+        critic.visit(&mut ForceInit);
+        let target = critic.valid();
+        let parts = Parts {
+            actor,
+            critic,
+            target,
+            actor_optim: adam(cfg),
+            critic_optim: adam(cfg),
+            state: SacState {
+                log_std_bounds: cfg.log_std_bounds,
+                entropy: EntropyCoef::new(cfg.init_alpha(ctx.phase)),
+                updates: 0,
+                replay_saved: false,
+            },
+            replay: None,
+        };
+        Ok(SacLearner::new(cfg.clone(), ctx, parts))
+    }
+
+    fn resume_learner(
+        &self,
+        ctx: &LearnerCtx<'_>,
+        dir: &Path,
+        state: &BehaviourState,
+    ) -> Result<SacLearner> {
+        let cfg = &self.config;
+        let name = &state.name;
+        let st: SacState = load_json(&state_file(dir, name), "SAC's state")?;
+        let net = net_config(cfg.hidden, cfg.layers, st.log_std_bounds);
+        let replay = if st.replay_saved {
+            Some(Replay::load(
+                &replay_file(dir, name),
+                cfg.buffer_size,
+                ctx.info.count,
+            )?)
+        } else {
+            None
+        };
+        let parts = Parts {
+            actor: load_module(net.init_actor(&ctx.train_device), &actor_file(dir, name))?,
+            critic: load_module(net.init_critic(&ctx.train_device), &critic_file(dir, name))?,
+            target: load_module(net.init_critic(&ctx.device), &target_file(dir, name))?,
+            actor_optim: load_optim(cfg, &behaviour_file(dir, name, "optim.bpk"))?,
+            critic_optim: load_optim(cfg, &behaviour_file(dir, name, "critic-optim.bpk"))?,
+            state: st,
+            replay,
+        };
+        Ok(SacLearner::new(cfg.clone(), ctx, parts))
+    }
+
+    fn transfer_learner(
+        &self,
+        ctx: &LearnerCtx<'_>,
+        from: &Path,
+        source: &BehaviourState,
+    ) -> Result<SacLearner> {
+        let cfg = &self.config;
+        let name = &source.name;
+        let src: SacState = load_json(&state_file(from, name), "SAC's state")?;
+        let net = net_config(cfg.hidden, cfg.layers, src.log_std_bounds);
+        let parts = Parts {
+            actor: load_module(net.init_actor(&ctx.train_device), &actor_file(from, name))?,
+            critic: load_module(net.init_critic(&ctx.train_device), &critic_file(from, name))?,
+            target: load_module(net.init_critic(&ctx.device), &target_file(from, name))?,
+            actor_optim: adam(cfg),
+            critic_optim: adam(cfg),
+            state: SacState {
+                log_std_bounds: src.log_std_bounds,
+                entropy: EntropyCoef::new(cfg.init_alpha(ctx.phase)),
+                updates: 0,
+                replay_saved: false,
+            },
+            replay: None,
+        };
+        Ok(SacLearner::new(cfg.clone(), ctx, parts))
+    }
+}
+
+/// What a learner is built from.
+struct Parts {
+    actor: Actor,
+    critic: TwinQ,
+    target: TwinQ,
+    actor_optim: ModuleOptimizer,
+    critic_optim: ModuleOptimizer,
+    state: SacState,
+    replay: Option<Replay>,
+}
+
 /// What an update reports.
 #[derive(Default, Clone, Copy)]
 struct UpdateStats {
@@ -196,533 +305,213 @@ impl UpdateStats {
     }
 }
 
-/// One behaviour's learner.
-struct Learner {
+/// `n × 3` standard normals from `stream`.
+fn normals(stream: &mut Stream, n: usize) -> Vec<f32> {
+    (0..n * ACTIONS).map(|_| stream.normal()).collect()
+}
+
+/// One behaviour's SAC.
+pub struct SacLearner {
+    cfg: SacConfig,
+    index: usize,
     name: String,
-    species: String,
-    size_class: String,
-    n: usize,
     first: usize,
+    lr: f64,
     actor: Actor,
     critic: TwinQ,
     target: TwinQ,
-    actor_infer: Actor,
+    /// The actor for acting (fused forward).
+    actor_net: InferNet,
+    /// The actor, target critic 1 and 2 on next observations (fused forward).
+    next_net: InferNet,
     actor_optim: ModuleOptimizer,
     critic_optim: ModuleOptimizer,
-    entropy: EntropyCoef,
+    state: SacState,
     replay: Replay,
     /// Older frames in each agent's stack (0–2).
     history: Vec<u8>,
     /// The next row continues the replay's previous one.
     continues: bool,
     pending: bool,
-    agent_steps: u64,
-    updates: u64,
-    stats: EpisodeStats,
     update_sums: UpdateStats,
     updates_in_window: u64,
-    next_log: u64,
+    next_log: Option<u64>,
     batch: Batch,
+    dev: Device,
 }
 
-fn adam(cfg: &SacConfig) -> ModuleOptimizer {
-    AdamConfig::new()
-        .with_epsilon(cfg.adam_epsilon as f32)
-        .init()
-}
-
-fn load_module<M: Module>(module: M, file: &Path) -> Result<M> {
-    module
-        .try_load_file(file)
-        .map_err(|e| anyhow::anyhow!("cannot load {}: {e:?}", file.display()))
-}
-
-/// Train SAC on a scene. See the module documentation.
-pub fn train(args: SacTrainArgs) -> Result<TrainOutcome> {
-    // ---- Arguments ---------------------------------------------------------------
-    let cfg = args.config.clone();
-    let phase = args.scene.phase;
-    let run_dir = args.run_dir.clone();
-    std::fs::create_dir_all(&run_dir)
-        .with_context(|| format!("cannot create {}", run_dir.display()))?;
-    let budget = args.steps.unwrap_or_else(|| cfg.budget(&args.scene, phase));
-    let dev = args.backend.device();
-    let ad = dev.clone().autodiff();
-    let net = net_config(cfg.hidden, cfg.layers, cfg.log_std_bounds, args.backend);
-    let resume_from = if args.resume {
-        match checkpoint::checkpoints(&run_dir).last() {
-            Some((_, d)) => Some(d.clone()),
-            None => bail!(
-                "--resume: {} has no checkpoint to resume from",
-                run_dir.display()
-            ),
-        }
-    } else {
-        None
-    };
-    let resumed: Option<(RunState, SacExtra)> = match &resume_from {
-        Some(d) => Some((RunState::load(d)?, SacExtra::load(d)?)),
-        None => None,
-    };
-    if let Some((st, _)) = &resumed {
-        if st.scene != args.scene.id || st.algo != "sac" {
-            bail!(
-                "--resume: run {} trained {} on {}, not sac on {}",
-                run_dir.display(),
-                st.algo,
-                st.scene,
-                args.scene.id
-            );
-        }
-        if st.hidden != cfg.hidden || st.layers != cfg.layers {
-            bail!(
-                "--resume: the run's network ({}×{}) differs from configs/train/sac.toml",
-                st.layers,
-                st.hidden
-            );
-        }
-    }
-    let init_source = match &args.init_from {
-        Some(run) => {
-            let dir = checkpoint::policy_dir(run, None)?;
-            let st = RunState::load(&dir)?;
-            if st.algo != "sac" {
-                bail!(
-                    "--init-from: {} is a {} run; SAC transfers from a SAC run",
-                    run.display(),
-                    st.algo
-                );
-            }
-            if st.hidden != cfg.hidden || st.layers != cfg.layers {
-                bail!(
-                    "--init-from: the network of {} ({}×{}) differs from configs/train/sac.toml",
-                    run.display(),
-                    st.layers,
-                    st.hidden
-                );
-            }
-            Some((dir, st))
-        }
-        None => None,
-    };
-
-    // ---- Environment -------------------------------------------------------------
-    let resets = resumed.as_ref().map_or(0, |s| s.0.resets + 1);
-    let mut env = Env::new(args.scene.clone(), args.seed.wrapping_add(resets));
-    let mut tick = resumed.as_ref().map_or(0, |s| s.0.ticks);
-
-    // ---- Agents ------------------------------------------------------------------
-    dev.seed(args.seed);
-    let mut learners: Vec<Learner> = Vec::new();
-    for info in env.behaviours() {
-        let mut actor = net.init_actor(&ad);
-        actor.visit(&mut ForceInit);
-        let mut critic = net.init_critic(&ad);
-        critic.visit(&mut ForceInit);
-        let mut target = critic.valid();
-        let (mut actor_optim, mut critic_optim) = (adam(&cfg), adam(&cfg));
-        let mut entropy = EntropyCoef::new(cfg.init_alpha(phase));
-        let (mut agent_steps, mut updates) = (0, 0);
-        let mut replay = None;
-        if let (Some(dir), Some((st, extra))) = (&resume_from, &resumed) {
-            actor = load_actor(dir, st, &info.name, &info.species, actor)?;
-            critic = load_module(critic, &critic_file(dir, &info.name))?;
-            target = load_module(net.init_critic(&dev), &target_file(dir, &info.name))?;
-            let load_optim = |f: PathBuf| {
-                adam(&cfg)
-                    .load(&f)
-                    .map_err(|e| anyhow::anyhow!("cannot load {}: {e:?}", f.display()))
-            };
-            actor_optim = load_optim(RunState::optim_file(dir, &info.name))?;
-            critic_optim = load_optim(critic_optim_file(dir, &info.name))?;
-            if let Some(bs) = st.behaviour(&info.name) {
-                (agent_steps, updates) = (bs.agent_steps, bs.updates);
-            }
-            if let Some(sb) = extra.behaviour(&info.name) {
-                entropy = sb.entropy.clone();
-                if sb.replay_saved {
-                    replay = Some(Replay::load(
-                        &replay_file(dir, &info.name),
-                        cfg.buffer_size,
-                        info.count,
-                    )?);
-                }
-            }
-        } else if let Some((dir, st)) = &init_source {
-            actor = load_actor(dir, st, &info.name, &info.species, actor)?;
-            let source = st
-                .behaviour(&info.name)
-                .or_else(|| st.behaviours.iter().find(|b| b.species == info.species))
-                .map(|b| b.name.clone())
-                .unwrap_or_else(|| info.name.clone());
-            critic = load_module(critic, &critic_file(dir, &source))?;
-            target = load_module(net.init_critic(&dev), &target_file(dir, &source))?;
-        }
-        learners.push(Learner {
-            name: info.name.clone(),
-            species: info.species.clone(),
-            size_class: info.size_class.clone(),
-            n: info.count,
-            first: info.first,
-            actor_infer: actor.valid(),
-            actor,
-            critic,
-            target,
-            actor_optim,
-            critic_optim,
-            entropy,
-            replay: replay.unwrap_or_else(|| Replay::new(cfg.buffer_size, info.count)),
-            history: vec![0; info.count],
+impl SacLearner {
+    fn new(cfg: SacConfig, ctx: &LearnerCtx<'_>, p: Parts) -> Self {
+        let n = ctx.info.count;
+        let mut l = Self {
+            lr: cfg.lr(ctx.phase),
+            index: ctx.index,
+            name: ctx.info.name.clone(),
+            first: ctx.info.first,
+            actor_net: p.actor.infer_net(),
+            next_net: p.actor.infer_net(),
+            actor: p.actor,
+            critic: p.critic,
+            target: p.target,
+            actor_optim: p.actor_optim,
+            critic_optim: p.critic_optim,
+            state: p.state,
+            replay: p.replay.unwrap_or_else(|| Replay::new(cfg.buffer_size, n)),
+            history: vec![0; n],
             continues: false,
             pending: false,
-            agent_steps,
-            updates,
-            stats: EpisodeStats::new(info.first, info.count),
             update_sums: UpdateStats::default(),
             updates_in_window: 0,
-            next_log: (agent_steps / cfg.summary_every + 1) * cfg.summary_every,
+            next_log: None,
             batch: Batch::default(),
-        });
+            dev: ctx.train_device.clone(),
+            cfg,
+        };
+        l.refresh_nets();
+        l
     }
-    let names: Vec<String> = learners.iter().map(|l| l.name.clone()).collect();
-    let mut logger = Logger::open(&run_dir, &names)?;
-    let mut state = resumed
-        .as_ref()
-        .map(|s| s.0.clone())
-        .unwrap_or_else(|| RunState {
-            algo: "sac".into(),
-            run_id: args.run_id.clone(),
-            scene: args.scene.id.clone(),
-            phase,
-            seed: args.seed,
-            backend: args.backend.as_str().into(),
-            agent_steps: 0,
-            budget,
-            ticks: 0,
-            resets: 0,
-            wall_seconds: 0.0,
-            init_from: args.init_from.as_ref().map(|p| p.display().to_string()),
-            hidden: cfg.hidden,
-            layers: cfg.layers,
-            init_log_std: 0.0,
-            behaviours: vec![],
-        });
-    state.resets = resets;
-    state.budget = budget;
-    let start_steps = state.agent_steps;
-    let mut next_checkpoint = (state.agent_steps / cfg.checkpoint_every + 1) * cfg.checkpoint_every;
-    let bar = progress_bar(args.progress, budget, state.agent_steps);
-    let mut timing = Timing::default();
-    let (mut curve, mut episode_curve) = (Vec::new(), Vec::new());
-    let started = Instant::now();
-    let wall_before = state.wall_seconds;
-    let mut actions: Vec<Vec<f32>> = learners.iter().map(|l| vec![0.0; l.n * ACTIONS]).collect();
-    let lr = cfg.lr(phase);
 
-    let t0 = Instant::now();
-    for (b, l) in learners.iter_mut().enumerate() {
-        l.act(
-            &env.output().behaviours[b],
-            &mut actions[b],
-            args.seed,
-            tick,
-            &dev,
-        );
+    /// New snapshots of the actor and the target critics for the fused forward.
+    fn refresh_nets(&mut self) {
+        self.actor_net = self.actor.infer_net();
+        let target = self.target.infer_net();
+        let mut next = deepfoids_learn::body::infer_net(&[
+            (&self.actor.body, None),
+            (&self.target.q1.body, Some(&self.target.q1.head)),
+            (&self.target.q2.body, Some(&self.target.q2.head)),
+        ]);
+        next.trunks[0] = self.actor_net.trunks[0].clone();
+        next.trunks[1] = target.trunks[0].clone();
+        next.trunks[2] = target.trunks[1].clone();
+        self.next_net = next;
     }
-    timing.inference += t0.elapsed();
 
-    // ---- The loop ----------------------------------------------------------------
-    while state.agent_steps < budget {
-        let t0 = Instant::now();
-        let out = env.step(&actions).context("environment step")?;
-        tick += 1;
-        timing.env += t0.elapsed();
-        for (b, l) in learners.iter_mut().enumerate() {
-            let batch = &out.behaviours[b];
-            if !batch.decided {
-                continue;
-            }
-            l.record(batch, out);
-            state.agent_steps += l.n as u64;
-            let t1 = Instant::now();
-            while l.updates < l.updates_due(&cfg) && !l.replay.is_empty() {
-                let s = l.update(&cfg, lr, args.seed, b, &dev, &ad)?;
-                l.update_sums.add(&s);
-                l.updates_in_window += 1;
-            }
-            timing.update += t1.elapsed();
-            if l.agent_steps >= l.next_log {
-                let rate = (state.agent_steps - start_steps) as f64
-                    / started.elapsed().as_secs_f64().max(1e-9);
-                let (reward, ep) = l.log(&mut logger, b, lr, rate)?;
-                curve.push((state.agent_steps, reward));
-                if let Some(ep) = ep {
-                    episode_curve.push((state.agent_steps, ep));
-                }
-                if let Some(bar) = &bar {
-                    bar.set_message(format!("{}: reward/decision {reward:.2}", l.name));
-                }
-                while l.next_log <= l.agent_steps {
-                    l.next_log += cfg.summary_every;
-                }
-            }
-            let t1 = Instant::now();
-            l.act(batch, &mut actions[b], args.seed, tick, &dev);
-            timing.inference += t1.elapsed();
-        }
-        if let Some(bar) = &bar {
-            bar.set_position(state.agent_steps.min(budget));
-        }
-        if args.save && state.agent_steps >= next_checkpoint {
-            state.ticks = tick;
-            state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
-            save(
-                &run_dir,
-                Some(state.agent_steps),
-                &learners,
-                &mut state,
-                &cfg,
-            )?;
-            checkpoint::prune(&run_dir, cfg.keep_checkpoints);
-            logger.flush()?;
-            while next_checkpoint <= state.agent_steps {
-                next_checkpoint += cfg.checkpoint_every;
-            }
-        }
-    }
-    // The last, partial window (a short run may not reach `summary_every`).
-    for (b, l) in learners.iter_mut().enumerate() {
-        if l.stats.decisions() > 0 {
-            let rate = (state.agent_steps - start_steps) as f64
-                / started.elapsed().as_secs_f64().max(1e-9);
-            let (reward, ep) = l.log(&mut logger, b, lr, rate)?;
-            curve.push((state.agent_steps, reward));
-            if let Some(ep) = ep {
-                episode_curve.push((state.agent_steps, ep));
-            }
-        }
-    }
-    state.ticks = tick;
-    state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
-    let final_dir = if args.save {
-        let fin = run_dir.join("final");
-        let _ = std::fs::remove_dir_all(&fin);
-        save(&run_dir, None, &learners, &mut state, &cfg)?;
-        Some(fin)
-    } else {
-        None
-    };
-    logger.close()?;
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
-    Ok(TrainOutcome {
-        run_dir,
-        agent_steps: state.agent_steps,
-        steps_this_run: state.agent_steps - start_steps,
-        wall_seconds: started.elapsed().as_secs_f64(),
-        timing,
-        curve,
-        episode_curve,
-        final_dir,
-        buffer: learners
-            .iter()
-            .fold(BufferMemory::default(), |m, l| BufferMemory {
-                allocated: m.allocated + l.replay.bytes() as u64,
-                resident: m.resident + l.replay.resident_bytes() as u64,
-                transitions: m.transitions + l.replay.len() as u64,
-            }),
-    })
-}
-
-/// Save every learner into a checkpoint (`Some(step)`: with optimisers and
-/// replay buffers) or `final/` (weights only), atomically.
-fn save(
-    run_dir: &Path,
-    step: Option<u64>,
-    learners: &[Learner],
-    state: &mut RunState,
-    cfg: &SacConfig,
-) -> Result<()> {
-    state.behaviours = learners
-        .iter()
-        .map(|l| BehaviourState {
-            name: l.name.clone(),
-            species: l.species.clone(),
-            size_class: l.size_class.clone(),
-            agent_steps: l.agent_steps,
-            updates: l.updates,
-            reward_norm: RunningMeanStd::default(),
-        })
-        .collect();
-    let with_replay = step.is_some() && cfg.save_replay_buffer;
-    let extra = SacExtra {
-        log_std_bounds: cfg.log_std_bounds,
-        behaviours: learners
-            .iter()
-            .map(|l| SacBehaviour {
-                name: l.name.clone(),
-                entropy: l.entropy.clone(),
-                replay_saved: with_replay,
-            })
-            .collect(),
-    };
-    let dir = match step {
-        Some(s) => checkpoint::checkpoint_dir(run_dir, s),
-        None => run_dir.join("final"),
-    };
-    if dir.exists() {
-        std::fs::remove_dir_all(&dir)
-            .with_context(|| format!("cannot replace {}", dir.display()))?;
-    }
-    std::fs::create_dir_all(dir.parent().expect("a run folder")).ok();
-    let io = |what: &str, name: &str, e: String| {
-        std::io::Error::other(format!("saving the {what} of {name}: {e}"))
-    };
-    deepfoids_env::io::create_dir_atomic(&dir, |tmp| {
-        for l in learners {
-            l.actor
-                .clone()
-                .save_file(RunState::model_file(tmp, &l.name))
-                .map_err(|e| io("actor", &l.name, format!("{e:?}")))?;
-            l.critic
-                .clone()
-                .save_file(critic_file(tmp, &l.name))
-                .map_err(|e| io("critics", &l.name, format!("{e:?}")))?;
-            l.target
-                .clone()
-                .save_file(target_file(tmp, &l.name))
-                .map_err(|e| io("target critics", &l.name, format!("{e:?}")))?;
-            if step.is_some() {
-                l.actor_optim
-                    .save(RunState::optim_file(tmp, &l.name))
-                    .map_err(|e| io("actor's optimiser", &l.name, format!("{e:?}")))?;
-                l.critic_optim
-                    .save(critic_optim_file(tmp, &l.name))
-                    .map_err(|e| io("critics' optimiser", &l.name, format!("{e:?}")))?;
-            }
-            if with_replay {
-                l.replay
-                    .save(&replay_file(tmp, &l.name))
-                    .map_err(|e| io("replay buffer", &l.name, e.to_string()))?;
-            }
-        }
-        extra.save(tmp).map_err(std::io::Error::other)?;
-        state.save(tmp).map_err(std::io::Error::other)
-    })
-    .with_context(|| format!("cannot write {}", dir.display()))
-}
-
-/// `n × 3` standard normals from `stream`.
-fn normals(stream: &mut Stream, n: usize) -> Vec<f32> {
-    (0..n * ACTIONS).map(|_| stream.normal()).collect()
-}
-
-impl Learner {
     /// Updates owed after `agent_steps` (see the module documentation).
-    fn updates_due(&self, cfg: &SacConfig) -> u64 {
-        if self.agent_steps < cfg.learning_starts {
+    fn updates_due(&self, agent_steps: u64) -> u64 {
+        let cfg = &self.cfg;
+        if agent_steps < cfg.learning_starts {
             return 0;
         }
-        ((self.agent_steps - cfg.learning_starts) as f64 / cfg.steps_per_update).floor() as u64
+        ((agent_steps - cfg.learning_starts) as f64 / cfg.steps_per_update).floor() as u64
     }
 
-    /// Sample actions for the batch's observations and store the row.
+    /// `tanh(μ + σ·ε)` for the actor's output `[n, 6]` (mean, raw log-std),
+    /// the noise of agent `a` keyed by `(seed, first + a, tick)`.
+    fn squash(&self, out: &[f32], actions: &mut [f32], seed: u64, tick: u64) {
+        for (a, row) in out.chunks_exact(2 * ACTIONS).enumerate() {
+            let mut noise = Stream::new(seed, Purpose::Exploration, (self.first + a) as u64, tick);
+            let eps = [noise.normal(), noise.normal(), noise.normal()];
+            let log_std: Vec<f32> = row[ACTIONS..]
+                .iter()
+                .map(|&x| self.actor.squash_log_std(x))
+                .collect();
+            squashed_sample_f32(
+                &row[..ACTIONS],
+                &log_std,
+                &eps,
+                &mut actions[a * ACTIONS..(a + 1) * ACTIONS],
+            );
+        }
+    }
+
+    /// Act on the batch's observations and, when training, store the row.
+    /// The first decision after the budget still stores its observations
+    /// (not its actions' rewards): they complete the last transition.
     fn act(
         &mut self,
         batch: &BehaviourBatch,
         actions: &mut [f32],
-        seed: u64,
-        tick: u64,
-        dev: &Device,
+        ctx: &mut StepCtx<'_>,
+        last: bool,
     ) {
-        let n = self.n;
-        let (mean, log_std) = self.actor_infer.forward(
-            tensor4(batch.grids.clone(), n, dev),
-            tensor2(batch.vectors.clone(), n, VECTOR_OBS, dev),
-        );
-        let (mean, log_std) = (to_vec(mean), to_vec(log_std));
-        for a in 0..n {
-            let mut noise = Stream::new(seed, Purpose::Exploration, (self.first + a) as u64, tick);
-            let eps = [noise.normal(), noise.normal(), noise.normal()];
-            let r = a * ACTIONS..(a + 1) * ACTIONS;
-            squashed_sample_f32(&mean[r.clone()], &log_std[r.clone()], &eps, &mut actions[r]);
+        let t0 = Instant::now();
+        let out = self
+            .actor_net
+            .forward(GridsRef::Dense(&batch.grids), &batch.vectors)
+            .remove(0);
+        self.squash(&out, actions, ctx.seed, ctx.tick);
+        ctx.timing.inference += t0.elapsed();
+        if ctx.training || last {
+            self.replay.push(
+                &batch.grids,
+                &batch.vectors,
+                actions,
+                &self.history,
+                self.continues,
+            );
+            self.continues = true;
+            self.pending = ctx.training;
         }
-        self.replay.push(
-            &batch.grids,
-            &batch.vectors,
-            actions,
-            &self.history,
-            self.continues,
-        );
-        self.continues = true;
-        self.pending = true;
-    }
-
-    /// The rewards and episode ends of the decision that just finished.
-    fn record(&mut self, batch: &BehaviourBatch, out: &StepOutput) {
-        if !self.pending {
-            return;
-        }
-        self.replay.reward(&batch.rewards, &batch.terminated);
-        for (h, &term) in self.history.iter_mut().zip(&batch.terminated) {
-            *h = next_history(*h, term);
-        }
-        self.stats.record(batch, out);
-        self.agent_steps += self.n as u64;
-        self.pending = false;
     }
 
     /// One gradient update of the critics, the actor and α, then the targets.
-    fn update(
-        &mut self,
-        cfg: &SacConfig,
-        lr: f64,
-        seed: u64,
-        b: usize,
-        dev: &Device,
-        ad: &Device,
-    ) -> Result<UpdateStats> {
-        let key = self.updates * 3;
-        let mut draw = Stream::new(seed, Purpose::Replay, b as u64, key);
+    fn update(&mut self, ctx: &mut StepCtx<'_>) -> Result<UpdateStats> {
+        let cfg = self.cfg.clone();
+        let (seed, b) = (ctx.seed, self.index as u64);
+        let key = self.state.updates * 3;
+        let t = Instant::now();
+        let mut draw = Stream::new(seed, Purpose::Replay, b, key);
         self.replay
             .sample(cfg.batch_size, |k| draw.below(k), &mut self.batch);
         let bt = &self.batch;
         let m = bt.len;
-        let alpha = self.entropy.alpha() as f32;
+        let alpha = self.state.entropy.alpha() as f32;
+        ctx.timing.part("sample", t.elapsed());
 
-        // Targets, without gradients.
-        let (ng, nv) = (
-            tensor4(bt.next_grids.clone(), m, dev),
-            tensor2(bt.next_vectors.clone(), m, VECTOR_OBS, dev),
-        );
-        let (nmean, nlog_std) = self.actor_infer.forward(ng.clone(), nv.clone());
-        let eps = normals(
-            &mut Stream::new(seed, Purpose::Replay, b as u64, key + 1),
-            m,
-        );
-        let (next_a, next_logp) = squashed_sample(nmean, nlog_std, tensor2(eps, m, ACTIONS, dev));
-        let (tq1, tq2) = self.target.forward(ng, nv, next_a);
+        // Targets, without gradients: the actor and both target critics on
+        // the next observations (their grids convolved once for all three).
+        let t = Instant::now();
+        let enc = self
+            .next_net
+            .encode(GridsRef::Compact(&bt.next_grids.bytes));
+        let plain = TrunkInputs {
+            vectors: &bt.next_vectors,
+            extra: &[],
+            extra_width: 0,
+        };
+        let out = self.next_net.trunk(0, &enc, plain);
+        let eps = normals(&mut Stream::new(seed, Purpose::Replay, b, key + 1), m);
+        let mut next_a = vec![0.0f32; m * ACTIONS];
+        let mut next_logp = vec![0.0f32; m];
+        for (i, row) in out.chunks_exact(2 * ACTIONS).enumerate() {
+            let log_std: Vec<f32> = row[ACTIONS..]
+                .iter()
+                .map(|&x| self.actor.squash_log_std(x))
+                .collect();
+            let r = i * ACTIONS..(i + 1) * ACTIONS;
+            next_logp[i] =
+                squashed_sample_f32(&row[..ACTIONS], &log_std, &eps[r.clone()], &mut next_a[r]);
+        }
+        let with_action = TrunkInputs {
+            extra: &next_a,
+            extra_width: ACTIONS,
+            ..plain
+        };
+        let tq1 = self.next_net.trunk(1, &enc, with_action);
+        let tq2 = self.next_net.trunk(2, &enc, with_action);
         let y = twin_q_target(
             &bt.rewards,
             &bt.terminated,
-            &to_vec(tq1),
-            &to_vec(tq2),
-            &to_vec(next_logp),
+            &tq1,
+            &tq2,
+            &next_logp,
             alpha,
             cfg.gamma,
         );
+        ctx.timing.part("targets", t.elapsed());
 
         // Critics and actor, both from this update's parameters (the simultaneous
         // step of Haarnoja et al.'s implementation). The actor's loss goes through
         // the critics' trunks with their weights frozen, on the critics' grid
         // encodings detached: the action enters after the encoder, so the encoder
         // runs once per critic and update.
-        let g = tensor4(bt.grids.clone(), m, ad);
-        let v = tensor2(bt.vectors.clone(), m, VECTOR_OBS, ad);
-        let a = tensor2(bt.actions.clone(), m, ACTIONS, ad);
-        let y = Tensor::<1>::from_data(TensorData::new(y, [m]), ad);
-        let encoded = self.critic.encode(g.clone());
+        let t = Instant::now();
+        let ad = self.dev.clone();
+        let grids = Grids::Compact(Arc::new(bt.grids.clone()));
+        let v = tensor2(bt.vectors.clone(), m, VECTOR_OBS, &ad);
+        let a = tensor2(bt.actions.clone(), m, ACTIONS, &ad);
+        let y = tensor1(y, &ad);
+        let encoded = self.critic.encode(&grids);
         let detached = (encoded.0.clone().detach(), encoded.1.clone().detach());
         let (q1, q2) = self.critic.from_encoded(encoded, v.clone(), a);
         let q_mean = q1.clone().mean().into_scalar::<f32>() as f64;
@@ -732,44 +521,48 @@ impl Learner {
             q1_loss.clone().into_scalar::<f32>(),
             q2_loss.clone().into_scalar::<f32>(),
         );
+        let non_finite = |what: String| LearnError::NonFinite {
+            update: self.state.updates + 1,
+            behaviour: self.name.clone(),
+            what,
+        };
         if !(l1.is_finite() && l2.is_finite()) {
-            bail!(
-                "update {} of {}: the critic loss is not finite (Q1 {l1}, Q2 {l2}); training stopped, the last good checkpoint is kept",
-                self.updates + 1,
-                self.name
-            );
+            return Err(non_finite(format!("the critic loss (Q1 {l1}, Q2 {l2})")));
         }
-
-        let (mean, log_std) = self.actor.forward(g, v.clone());
-        let eps = normals(
-            &mut Stream::new(seed, Purpose::Replay, b as u64, key + 2),
-            m,
-        );
-        let (new_a, logp) = squashed_sample(mean, log_std, tensor2(eps, m, ACTIONS, ad));
+        let (mean, log_std) = self.actor.forward(&grids, v.clone());
+        let eps = normals(&mut Stream::new(seed, Purpose::Replay, b, key + 2), m);
+        let (new_a, logp) = squashed_sample(mean, log_std, tensor2(eps, m, ACTIONS, &ad));
         let frozen = self.critic.clone().no_grad();
         let (q1p, q2p) = frozen.from_encoded(detached, v, new_a);
         let actor_loss = (logp.clone().mul_scalar(alpha) - q1p.min_pair(q2p)).mean();
         let pl = actor_loss.clone().into_scalar::<f32>();
         let mean_logp = logp.mean().into_scalar::<f32>() as f64;
         if !(pl.is_finite() && mean_logp.is_finite()) {
-            bail!(
-                "update {} of {}: the policy loss is not finite ({pl}); training stopped, the last good checkpoint is kept",
-                self.updates + 1,
-                self.name
-            );
+            return Err(non_finite(format!("the policy loss ({pl})")));
         }
-        let grads = GradientsParams::from_grads((q1_loss + q2_loss).backward(), &self.critic);
-        self.critic = self.critic_optim.step(lr, self.critic.clone(), grads);
-        let grads = GradientsParams::from_grads(actor_loss.backward(), &self.actor);
-        self.actor = self.actor_optim.step(lr, self.actor.clone(), grads);
-        self.actor_infer = self.actor.valid();
+        ctx.timing.part("forward", t.elapsed());
+        let t = Instant::now();
+        let critic_grads =
+            GradientsParams::from_grads((q1_loss + q2_loss).backward(), &self.critic);
+        let actor_grads = GradientsParams::from_grads(actor_loss.backward(), &self.actor);
+        ctx.timing.part("backward", t.elapsed());
+        let t = Instant::now();
+        self.critic = self
+            .critic_optim
+            .step(self.lr, self.critic.clone(), critic_grads);
+        self.actor = self
+            .actor_optim
+            .step(self.lr, self.actor.clone(), actor_grads);
 
         // Entropy coefficient, then the target critics.
-        let entropy_loss = self
-            .entropy
-            .step(mean_logp, cfg.target_entropy, lr, cfg.adam_epsilon);
+        let entropy_loss =
+            self.state
+                .entropy
+                .step(mean_logp, cfg.target_entropy, self.lr, cfg.adam_epsilon);
         self.target = soft_update(self.target.clone(), &self.critic.valid(), cfg.tau);
-        self.updates += 1;
+        self.state.updates += 1;
+        self.refresh_nets();
+        ctx.timing.part("optimiser", t.elapsed());
         Ok(UpdateStats {
             q1_loss: l1 as f64,
             q2_loss: l2 as f64,
@@ -779,40 +572,130 @@ impl Learner {
             q: q_mean,
         })
     }
+}
 
-    /// Write the window's scalars; returns the mean reward per decision and, if
-    /// episodes ended, their mean cumulative reward.
-    fn log(
+impl Learner for SacLearner {
+    fn start(
         &mut self,
-        logger: &mut Logger,
-        b: usize,
-        lr: f64,
-        rate: f64,
-    ) -> Result<(f64, Option<f64>)> {
-        let step = self.agent_steps;
-        let (reward, episode) = self.stats.log(logger, b, step)?;
+        batch: &BehaviourBatch,
+        actions: &mut [f32],
+        ctx: &mut StepCtx<'_>,
+    ) -> Result<()> {
+        // A fresh environment: stacks restart, and the replay's previous row
+        // has no successor.
+        self.history.fill(0);
+        self.continues = false;
+        self.pending = false;
+        self.next_log =
+            Some((ctx.agent_steps / self.cfg.summary_every + 1) * self.cfg.summary_every);
+        self.act(batch, actions, ctx, false);
+        Ok(())
+    }
+
+    fn decide(
+        &mut self,
+        batch: &BehaviourBatch,
+        actions: &mut [f32],
+        ctx: &mut StepCtx<'_>,
+    ) -> Result<()> {
+        let last = self.pending && !ctx.training;
+        if self.pending {
+            self.replay.reward(&batch.rewards, &batch.terminated);
+            for (h, &term) in self.history.iter_mut().zip(&batch.terminated) {
+                *h = next_history(*h, term);
+            }
+            self.pending = false;
+        }
+        let t = Instant::now();
+        while self.state.updates < self.updates_due(ctx.agent_steps) && !self.replay.is_empty() {
+            let s = self.update(ctx)?;
+            self.update_sums.add(&s);
+            self.updates_in_window += 1;
+        }
+        ctx.timing.update += t.elapsed();
+        self.act(batch, actions, ctx, last);
+        Ok(())
+    }
+
+    fn log_due(&self, agent_steps: u64) -> bool {
+        self.next_log.is_some_and(|n| agent_steps >= n)
+    }
+
+    fn log(&mut self, out: &mut Scalars<'_>) -> Result<()> {
         let s = std::mem::take(&mut self.update_sums);
         let k = std::mem::take(&mut self.updates_in_window);
         if k > 0 {
             let k = k as f64;
-            logger.scalar(b, "Losses/Q1 Loss", s.q1_loss / k, step)?;
-            logger.scalar(b, "Losses/Q2 Loss", s.q2_loss / k, step)?;
-            logger.scalar(b, "Losses/Policy Loss", s.policy_loss / k, step)?;
-            logger.scalar(b, "Losses/Entropy Coeff Loss", s.entropy_loss / k, step)?;
-            logger.scalar(b, "Policy/Entropy", s.entropy / k, step)?;
-            logger.scalar(b, "Policy/Extrinsic Value Estimate", s.q / k, step)?;
+            out.put("Losses/Q1 Loss", s.q1_loss / k)?;
+            out.put("Losses/Q2 Loss", s.q2_loss / k)?;
+            out.put("Losses/Policy Loss", s.policy_loss / k)?;
+            out.put("Losses/Entropy Coeff Loss", s.entropy_loss / k)?;
+            out.put("Policy/Entropy", s.entropy / k)?;
+            out.put("Policy/Extrinsic Value Estimate", s.q / k)?;
         }
-        logger.scalar(b, "Policy/Entropy Coeff", self.entropy.alpha(), step)?;
-        logger.scalar(b, "Policy/Learning Rate", lr, step)?;
-        logger.scalar(b, "Policy/Updates", self.updates as f64, step)?;
-        logger.scalar(b, "Perf/Agent Steps per Second", rate, step)?;
-        Ok((reward, episode))
+        out.put("Policy/Entropy Coeff", self.state.entropy.alpha())?;
+        out.put("Policy/Learning Rate", self.lr)?;
+        out.put("Policy/Updates", self.state.updates as f64)?;
+        if let Some(n) = &mut self.next_log {
+            while *n <= out.step {
+                *n += self.cfg.summary_every;
+            }
+        }
+        Ok(())
+    }
+
+    fn updates(&self) -> u64 {
+        self.state.updates
+    }
+
+    fn save(&self, dir: &Path, name: &str, checkpoint: bool) -> Result<()> {
+        save_module(&self.actor, &actor_file(dir, name))?;
+        save_module(&self.critic, &critic_file(dir, name))?;
+        save_module(&self.target, &target_file(dir, name))?;
+        let with_replay = checkpoint && self.cfg.save_replay_buffer;
+        if checkpoint {
+            save_optim(&self.actor_optim, &behaviour_file(dir, name, "optim.bpk"))?;
+            save_optim(
+                &self.critic_optim,
+                &behaviour_file(dir, name, "critic-optim.bpk"),
+            )?;
+        }
+        if with_replay {
+            self.replay.save(&replay_file(dir, name))?;
+        }
+        let st = SacState {
+            replay_saved: with_replay,
+            ..self.state.clone()
+        };
+        save_json(&state_file(dir, name), &st)
+    }
+
+    fn actor_onnx(&self, meta: &Metadata) -> Vec<u8> {
+        export_policy(
+            &self.actor.body,
+            Head::Squashed {
+                mean: &self.actor.mean,
+                log_std: &self.actor.log_std,
+                bounds: self.actor.bounds(),
+            },
+            meta,
+        )
+    }
+
+    fn memory(&self) -> BufferMemory {
+        BufferMemory {
+            allocated: self.replay.bytes() as u64,
+            resident: self.replay.resident_bytes() as u64,
+            transitions: self.replay.len() as u64,
+            peak: self.replay.resident_bytes() as u64,
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use deepfoids_learn::tensor::to_vec;
 
     fn params(m: &TwinQ) -> Vec<f32> {
         let mut f = Flatten(Vec::new());

@@ -2,10 +2,10 @@
 
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
-use deepfoids_ppo::checkpoint::{RunState, checkpoints};
-use deepfoids_ppo::{Backend, TrainOutcome};
+use deepfoids_learn::checkpoint::{RunState, checkpoints};
+use deepfoids_learn::{Backend, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_sac::replay::{PROXIMITY_TOLERANCE, Replay, next_history};
-use deepfoids_sac::{SacConfig, SacTrainArgs, train};
+use deepfoids_sac::{SacConfig, train};
 use deepfoids_sensors::{CELLS, FRAME_LEN, STACKED_LEN};
 use std::path::{Path, PathBuf};
 
@@ -34,19 +34,22 @@ fn small_config() -> SacConfig {
 }
 
 fn run(dir: &Path, cfg: SacConfig, steps: u64, seed: u64, resume: bool) -> TrainOutcome {
-    train(SacTrainArgs {
-        scene: Scene::load(&dirs(), "seabream_default", Phase::Pretrain).unwrap(),
-        config: cfg,
-        run_dir: dir.to_path_buf(),
-        run_id: "test".into(),
-        seed,
-        steps: Some(steps),
-        resume,
-        init_from: None,
-        backend: Backend::Flex,
-        progress: false,
-        save: true,
-    })
+    train(
+        cfg,
+        RunArgs {
+            scene: Scene::load(&dirs(), "seabream_default", Phase::Pretrain).unwrap(),
+            run_dir: dir.to_path_buf(),
+            run_id: "test".into(),
+            seed,
+            steps: Some(steps),
+            resume,
+            init_from: vec![],
+            backend: Backend::Flex,
+            progress: ProgressMode::Quiet,
+            progress_sink: None,
+            save: true,
+        },
+    )
     .unwrap()
 }
 
@@ -133,6 +136,7 @@ fn resume_restores_the_step_count_and_the_replay_buffer() {
     let last = &cps.last().unwrap().1;
     let state = RunState::load(last).unwrap();
     assert_eq!((state.agent_steps, state.algo.as_str()), (3000, "sac"));
+    assert!(last.join("seabream_regular.sac.json").is_file());
     // 1,000 steps before the first update, then one per 100 steps: 20 updates.
     assert_eq!(state.behaviours[0].updates, 20);
     let replay = Replay::load(&last.join("seabream_regular.replay.bin"), 10_000, 10).unwrap();

@@ -19,7 +19,7 @@ use anyhow::{Context, Result, bail};
 use deepfoids_env::limits::MAX_SEEDS;
 use deepfoids_env::metrics::{SchoolState, Summary};
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, TERM_NAMES};
-use deepfoids_ppo::checkpoint::{RunState, policy_dir};
+use deepfoids_learn::checkpoint::{RunState, policy_dir};
 use plotters::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -177,8 +177,8 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         let mut summaries = Vec::new();
         for seed in 0..args.seeds {
             let mut env = Env::new(scene.clone(), seed);
-            let mut policy = load_trained(&r.dir, None, &env, args.backend, true, seed)?;
-            let eval = evaluate(&mut env, policy.as_mut(), 0.0, args.seconds, |_, _, _| {})?;
+            let mut policy = load_trained(&r.dir, None, &env, true, seed)?;
+            let eval = evaluate(&mut env, &mut policy, 0.0, args.seconds, |_, _, _| {})?;
             summaries.push(eval.recorder.summary(eval.seconds));
         }
         rows.push(average(&summaries));
@@ -273,7 +273,7 @@ fn table(runs: &[Run], rows: &[Row], scene: &str, args: &CompareArgs) -> (String
         let rate = st.agent_steps as f64 / st.wall_seconds.max(1e-9);
         let mut md_cells = vec![
             r.label.clone(),
-            st.algo.clone(),
+            st.algo.to_string(),
             format!("{} ({})", st.scene, st.phase.as_str()),
             st.agent_steps.to_string(),
             format!("{:.0}", st.wall_seconds),
@@ -282,7 +282,7 @@ fn table(runs: &[Run], rows: &[Row], scene: &str, args: &CompareArgs) -> (String
         ];
         let mut csv_cells = vec![
             r.dir.display().to_string(),
-            st.algo.clone(),
+            st.algo.to_string(),
             format!("{} ({})", st.scene, st.phase.as_str()),
             st.agent_steps.to_string(),
             format!("{:.1}", st.wall_seconds),

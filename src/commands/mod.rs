@@ -16,7 +16,10 @@ use crate::cli::PolicyArgs;
 use anyhow::{Result, bail};
 use deepfoids_env::baselines::{Boids, BoidsConfig, Foids, FoidsConfig};
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
-use deepfoids_ppo::TrainedPolicy;
+use deepfoids_learn::Algorithm;
+use deepfoids_learn::checkpoint::{BehaviourState, RunState};
+use deepfoids_learn::policy::{Actor, ActorPolicy};
+use std::path::Path;
 
 /// Load a scene with its reward weights; the error names the file and field.
 /// An environment of it must fit into the machine's memory
@@ -51,14 +54,13 @@ pub fn make_policy(
             deepfoids_onnx::check_species(&p, env)?;
             Ok(Box::new(p))
         }
-        _ if path.is_dir() => load_trained(
+        _ if path.is_dir() => Ok(Box::new(load_trained(
             path,
             opts.checkpoint,
             env,
-            opts.backend,
             !opts.stochastic,
             seed,
-        ),
+        )?)),
         other if path.extension().is_some_and(|e| e == "onnx") || other.contains('/') => bail!(
             "policy `{other}` does not exist (a run folder or a .onnx file was expected there)"
         ),
@@ -68,40 +70,36 @@ pub fn make_policy(
     }
 }
 
+/// Behaviour `source` of a policy folder as an actor, PPO or SAC as its
+/// `state.json` says.
+pub fn load_actor(
+    dir: &Path,
+    state: &RunState,
+    source: &BehaviourState,
+) -> deepfoids_learn::Result<Box<dyn Actor>> {
+    match state.algo {
+        Algorithm::Ppo => deepfoids_ppo::load_actor(dir, state, source),
+        Algorithm::Sac => deepfoids_sac::load_actor(dir, state, source),
+    }
+}
+
 /// The policy of a run folder (its `final/`, or checkpoint `step`), PPO or SAC
-/// as its `state.json` says.
+/// as its `state.json` says; it acts on the hand-written kernels.
 pub fn load_trained(
-    run: &std::path::Path,
+    run: &Path,
     step: Option<u64>,
     env: &Env,
-    backend: deepfoids_ppo::Backend,
     deterministic: bool,
     seed: u64,
-) -> Result<Box<dyn Policy>> {
-    let dir = deepfoids_ppo::checkpoint::policy_dir(run, step)?;
-    let state = deepfoids_ppo::checkpoint::RunState::load(&dir)?;
-    Ok(match state.algo.as_str() {
-        "ppo" => Box::new(TrainedPolicy::load(
-            run,
-            step,
-            env,
-            backend,
-            deterministic,
-            seed,
-        )?),
-        "sac" => Box::new(deepfoids_sac::SacPolicy::load(
-            run,
-            step,
-            env,
-            backend,
-            deterministic,
-            seed,
-        )?),
-        other => bail!(
-            "{}: unknown algorithm `{other}` in state.json; allowed: ppo, sac",
-            dir.display()
-        ),
-    })
+) -> Result<ActorPolicy> {
+    Ok(ActorPolicy::load(
+        run,
+        step,
+        env,
+        deterministic,
+        seed,
+        &load_actor,
+    )?)
 }
 
 /// What the built-in main job (`deepfoids` without a command) trains. Chosen by
@@ -147,7 +145,7 @@ pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
     let args = crate::cli::TrainCmd {
         scene: q.scene.into(),
         phase: q.phase,
-        init_from: None,
+        init_from: vec![],
         steps: Some(q.steps),
         run_id: Some(format!("quickstart-ppo-{}", q.scene)),
         resume: false,
@@ -156,7 +154,7 @@ pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
             algo: crate::cli::Algo::Ppo,
             seed: q.seed,
             runs_dir: "runs".into(),
-            backend: deepfoids_ppo::Backend::Flex,
+            backend: deepfoids_learn::Backend::Flex,
             eval_seconds: q.eval_seconds,
             quiet: false,
         },

@@ -1,11 +1,15 @@
-//! `deepfoids pipeline`: the two-step scheme of thesis §4.5.2 for one species —
-//! pretrain in its default scene with the pretraining weights and budget, then
+//! `deepfoids pipeline`: the two-step scheme of thesis §4.5.2 — pretrain a
+//! species in its default scene with the pretraining weights and budget, then
 //! transfer-learn from that policy into every scene of the species (the default
-//! included) with the transfer weights, evaluate each, and tabulate.
+//! included) with the transfer weights, evaluate each, and tabulate. With
+//! `--species all`: pretrain every species, then transfer into every scene,
+//! mixed ones (`three_species`) included, each behaviour from its species'
+//! pretrained policy (`--init-from` with several runs).
 //!
-//! Stages live in `<runs>/<pipeline>/pretrain` and `…/transfer-<scene>`; a stage
-//! with a final policy is reused and one with checkpoints is resumed, so an
-//! interrupted pipeline continues where it stopped.
+//! Stages live in `<runs>/<pipeline>/pretrain` (`pretrain-<species>` with
+//! `all`) and `…/transfer-<scene>`; a stage with a final policy is reused and
+//! one with checkpoints is resumed, so an interrupted pipeline continues where
+//! it stopped.
 
 use super::load_scene;
 use super::train::{algo_name, curve_ends, evaluate_run, train_scene};
@@ -25,65 +29,102 @@ struct Row {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &PipelineArgs) -> Result<()> {
-    let species = args.species.as_str();
     let known = dirs.list("species");
-    if !known.iter().any(|s| s == species) {
+    let all = args.species == "all";
+    let species: Vec<String> = if all {
+        known.clone()
+    } else if known.iter().any(|s| s == &args.species) {
+        vec![args.species.clone()]
+    } else {
         bail!(
-            "unknown species `{species}`; available: {}",
+            "unknown species `{}`; available: {}, or all",
+            args.species,
             known.join(", ")
         );
-    }
-    let default = format!("{species}_default");
-    let pretrain_scene = load_scene(dirs, &default, Phase::Pretrain)?;
-    let only_this = |s: &Scene| s.species_names() == [species.to_string()];
+    };
+    // Target scenes: every scene (all), or those holding only this species.
+    let fits = |s: &Scene| all || s.species_names() == species;
     let mut targets: Vec<String> = if args.scenes.is_empty() {
         dirs.list("scenes")
             .into_iter()
             .filter(|id| {
                 Scene::load(dirs, id, Phase::Transfer)
-                    .map(|s| only_this(&s))
+                    .map(|s| fits(&s))
                     .unwrap_or(false)
             })
             .collect()
     } else {
         for id in &args.scenes {
             let s = load_scene(dirs, id, Phase::Transfer)?;
-            if !only_this(&s) {
+            if !fits(&s) {
                 bail!(
-                    "scene {id} holds {}, not only {species}",
-                    s.species_names().join(", ")
+                    "scene {id} holds {}, not only {}",
+                    s.species_names().join(", "),
+                    args.species
                 );
             }
         }
         args.scenes.clone()
     };
-    // The default scene first, as the thesis does.
-    targets.sort_by_key(|id| (id != &default, id.clone()));
+    // The default scenes first, as the thesis does.
+    let defaults: Vec<String> = species.iter().map(|s| format!("{s}_default")).collect();
+    targets.sort_by_key(|id| (!defaults.contains(id), id.clone()));
     let opts = &args.opts;
-    let id = args
-        .run_id
-        .clone()
-        .unwrap_or_else(|| format!("pipeline-{}-{species}-s{}", algo_name(opts.algo), opts.seed));
+    let id = args.run_id.clone().unwrap_or_else(|| {
+        format!(
+            "pipeline-{}-{}-s{}",
+            algo_name(opts.algo),
+            args.species,
+            opts.seed
+        )
+    });
     let root = opts.runs_dir.join(&id);
     std::fs::create_dir_all(&root)?;
     eprintln!(
-        "pipeline {id}: pretrain in {default}, then transfer into {}",
+        "pipeline {id}: pretrain in {}, then transfer into {}",
+        defaults.join(", "),
         targets.join(", ")
     );
 
     let mut rows = Vec::new();
-    let pretrain_dir = root.join("pretrain");
-    rows.push(stage(
-        dirs,
-        pretrain_scene,
-        &pretrain_dir,
-        &format!("{id}/pretrain"),
-        args.pretrain_steps,
-        None,
-        args,
-    )?);
+    let mut pretrained: Vec<(String, std::path::PathBuf)> = Vec::new();
+    for s in &species {
+        let stage_name = if all {
+            format!("pretrain-{s}")
+        } else {
+            "pretrain".to_string()
+        };
+        let dir = root.join(&stage_name);
+        let scene = load_scene(dirs, &format!("{s}_default"), Phase::Pretrain)?;
+        rows.push(stage(
+            dirs,
+            scene,
+            &dir,
+            &format!("{id}/{stage_name}"),
+            args.pretrain_steps,
+            &[],
+            args,
+        )?);
+        pretrained.push((s.clone(), dir));
+    }
     for target in &targets {
         let scene = load_scene(dirs, target, Phase::Transfer)?;
+        // Each species of the scene from its own pretrained policy.
+        let init: Vec<std::path::PathBuf> = scene
+            .species_names()
+            .iter()
+            .map(|sp| {
+                pretrained
+                    .iter()
+                    .find(|(p, _)| p == sp)
+                    .map(|(_, d)| d.clone())
+                    .ok_or_else(|| {
+                        anyhow::anyhow!(
+                            "scene {target} holds {sp}, which this pipeline does not pretrain"
+                        )
+                    })
+            })
+            .collect::<Result<_>>()?;
         let dir = root.join(format!("transfer-{target}"));
         rows.push(stage(
             dirs,
@@ -91,7 +132,7 @@ pub fn run(dirs: &ConfigDirs, args: &PipelineArgs) -> Result<()> {
             &dir,
             &format!("{id}/transfer-{target}"),
             args.transfer_steps,
-            Some(&pretrain_dir),
+            &init,
             args,
         )?);
     }
@@ -148,7 +189,7 @@ fn stage(
     dir: &Path,
     run_id: &str,
     steps: Option<u64>,
-    init_from: Option<&Path>,
+    init_from: &[std::path::PathBuf],
     args: &PipelineArgs,
 ) -> Result<Row> {
     let phase = scene.phase;
@@ -156,28 +197,19 @@ fn stage(
     let finished = dir.join("final").join("state.json").is_file();
     let (summary, train_reward, agent_steps) = if finished {
         eprintln!("{run_id}: finished before, reusing it");
-        let state = deepfoids_ppo::checkpoint::RunState::load(&dir.join("final"))?;
+        let state = deepfoids_learn::checkpoint::RunState::load(&dir.join("final"))?;
         let summary = match read_summary(&dir.join("eval").join("summary.json")) {
             Some(s) => s,
             None => evaluate_run(scene, dir, &args.opts)?,
         };
         (summary, None, state.agent_steps)
     } else {
-        let resume = !deepfoids_ppo::checkpoint::checkpoints(dir).is_empty();
+        let resume = !deepfoids_learn::checkpoint::checkpoints(dir).is_empty();
         let mut opts = args.opts.clone();
         if opts.eval_seconds <= 0.0 {
             opts.eval_seconds = 60.0;
         }
-        let t = train_scene(
-            dirs,
-            scene,
-            dir,
-            run_id,
-            steps,
-            init_from.map(Path::to_path_buf),
-            resume,
-            &opts,
-        )?;
+        let t = train_scene(dirs, scene, dir, run_id, steps, init_from, resume, &opts)?;
         let end = curve_ends(&t.outcome.curve, 3).map(|x| x.1);
         (t.summary.expect("evaluated"), end, t.outcome.agent_steps)
     };

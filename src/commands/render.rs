@@ -340,7 +340,6 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
     let pa = PolicyArgs {
         checkpoint: None,
         stochastic: false,
-        backend: deepfoids_ppo::Backend::Flex,
     };
     let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa)?;
     sim.step(ticks(10.0, &sim.env))?;

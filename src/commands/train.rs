@@ -2,12 +2,13 @@
 
 use super::load_scene;
 use crate::cli::{Algo, TrainCmd, TrainOptions};
-use crate::report::{EvalMeta, RunArgs, evaluate, print_table, write_outputs};
+use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
 use anyhow::{Context, Result, bail};
 use deepfoids_env::metrics::Summary;
-use deepfoids_env::{ConfigDirs, Env, Scene};
-use deepfoids_ppo::{PpoConfig, TrainArgs, TrainOutcome};
-use deepfoids_sac::{SacConfig, SacTrainArgs};
+use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
+use deepfoids_learn::{ProgressMode, RunArgs, TrainOutcome};
+use deepfoids_ppo::PpoConfig;
+use deepfoids_sac::SacConfig;
 use std::path::{Path, PathBuf};
 
 /// A finished training command.
@@ -36,7 +37,7 @@ pub fn run(dirs: &ConfigDirs, args: &TrainCmd) -> Result<Trained> {
         &run_dir,
         &run_id,
         args.steps,
-        args.init_from.clone(),
+        &args.init_from,
         args.resume,
         &args.opts,
     )
@@ -77,7 +78,7 @@ pub fn train_scene(
     run_dir: &Path,
     run_id: &str,
     steps: Option<u64>,
-    init_from: Option<PathBuf>,
+    init_from: &[PathBuf],
     resume: bool,
     opts: &TrainOptions,
 ) -> Result<Trained> {
@@ -85,11 +86,17 @@ pub fn train_scene(
         Algo::Ppo => (Some(PpoConfig::load(dirs)?), None),
         Algo::Sac => (None, Some(SacConfig::load(dirs)?)),
     };
-    let budget = steps.unwrap_or_else(|| match (&ppo, &sac) {
-        (Some(c), _) => c.budget(&scene, scene.phase),
-        (_, Some(c)) => c.budget(&scene, scene.phase),
-        _ => unreachable!("one config is loaded"),
-    });
+    // Each behaviour's own budget (ML-Agents' max_steps is per behaviour).
+    let mut budgets = toml::Table::new();
+    for b in &scene.behaviours {
+        let species = &b.species.name;
+        let budget = steps.unwrap_or_else(|| match (&ppo, &sac) {
+            (Some(c), _) => c.budget(species, scene.phase),
+            (_, Some(c)) => c.budget(species, scene.phase),
+            _ => unreachable!("one config is loaded"),
+        });
+        budgets.insert(b.name.clone(), (budget as i64).into());
+    }
     std::fs::create_dir_all(run_dir)
         .with_context(|| format!("cannot create {}", run_dir.display()))?;
     if !resume {
@@ -100,10 +107,14 @@ pub fn train_scene(
         run.insert("scene".into(), scene.id.clone().into());
         run.insert("phase".into(), scene.phase.as_str().into());
         run.insert("seed".into(), (opts.seed as i64).into());
-        run.insert("steps".into(), (budget as i64).into());
+        run.insert("steps".into(), budgets.clone().into());
         run.insert("backend".into(), opts.backend.as_str().into());
-        if let Some(i) = &init_from {
-            run.insert("init_from".into(), i.display().to_string().into());
+        if !init_from.is_empty() {
+            let runs: Vec<toml::Value> = init_from
+                .iter()
+                .map(|i| i.display().to_string().into())
+                .collect();
+            run.insert("init_from".into(), runs.into());
         }
         resolved.insert("run".into(), run.into());
         if let Some(c) = &ppo {
@@ -125,33 +136,26 @@ pub fn train_scene(
         scene.phase.as_str(),
         run_dir.display()
     );
+    let args = RunArgs {
+        scene: scene.clone(),
+        run_dir: run_dir.to_path_buf(),
+        run_id: run_id.to_string(),
+        seed: opts.seed,
+        steps,
+        resume,
+        init_from: init_from.to_vec(),
+        backend: opts.backend,
+        progress: if opts.quiet {
+            ProgressMode::Quiet
+        } else {
+            ProgressMode::Auto
+        },
+        progress_sink: None,
+        save: true,
+    };
     let outcome = match (ppo, sac) {
-        (Some(config), _) => deepfoids_ppo::train(TrainArgs {
-            scene: scene.clone(),
-            config,
-            run_dir: run_dir.to_path_buf(),
-            run_id: run_id.to_string(),
-            seed: opts.seed,
-            steps: Some(budget),
-            resume,
-            init_from,
-            backend: opts.backend,
-            progress: !opts.quiet,
-            save: true,
-        })?,
-        (_, Some(config)) => deepfoids_sac::train(SacTrainArgs {
-            scene: scene.clone(),
-            config,
-            run_dir: run_dir.to_path_buf(),
-            run_id: run_id.to_string(),
-            seed: opts.seed,
-            steps: Some(budget),
-            resume,
-            init_from,
-            backend: opts.backend,
-            progress: !opts.quiet,
-            save: true,
-        })?,
+        (Some(config), _) => deepfoids_ppo::train(config, args)?,
+        (_, Some(config)) => deepfoids_sac::train(config, args)?,
         _ => unreachable!("one config is loaded"),
     };
     print_training(&outcome);
@@ -198,31 +202,30 @@ fn print_training(o: &TrainOutcome) {
     if let Some((a, b)) = curve_ends(&o.episode_curve, 3) {
         println!("cumulative reward per episode: start {a:.1} → end {b:.1}");
     }
+    if let Some(f) = &o.final_dir {
+        println!(
+            "final policy: {} (weights, state.json, <behaviour>.onnx)",
+            f.display()
+        );
+    }
 }
 
 /// Evaluate a run's final policy deterministically; writes `<run>/eval/`.
 pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
     let env_seed = opts.seed.wrapping_add(1_000_003);
-    let rerun = RunArgs {
+    let rerun = crate::report::RunArgs {
         scene: scene.source.display().to_string(),
         phase: scene.phase.as_str().to_string(),
         seed: env_seed,
         policy: run_dir.display().to_string(),
         checkpoint: None,
         stochastic: false,
-        backend: opts.backend.as_str().to_string(),
         warmup: 0.0,
         seconds: opts.eval_seconds,
     };
     let mut env = Env::new(scene, env_seed);
-    let mut policy = super::load_trained(run_dir, None, &env, opts.backend, true, opts.seed)?;
-    let eval = evaluate(
-        &mut env,
-        policy.as_mut(),
-        0.0,
-        opts.eval_seconds,
-        |_, _, _| {},
-    )?;
+    let mut policy = super::load_trained(run_dir, None, &env, true, opts.seed)?;
+    let eval = evaluate(&mut env, &mut policy, 0.0, opts.eval_seconds, |_, _, _| {})?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {

@@ -13,14 +13,18 @@
 //! Opset 9: what ML-Agents exports and Unity's Barracuda loads (Sentis reads
 //! opsets 7–15). Swish is `x · sigmoid(x)`; Burn's `Linear` weights are
 //! `[in, out]`, so `Gemm` takes them untransposed; convolution weights are
-//! `[out, in, kh, kw]` in both. Metadata: species, scene, algorithm, training
-//! step, behaviour and the observation and action layouts.
+//! `[out, in, kh, kw]` in both. The first convolution pads the azimuth axis
+//! with one zero column on each side (`pads` `[0, 1, 0, 1]`): the network's
+//! blind sector behind, as in Burn (see `crate::kernels::geometry`); the
+//! input stays `[batch, 18, 20, 34]`. Metadata: species, scene, algorithm,
+//! training step, behaviour and the observation and action layouts.
 
-use crate::proto::*;
+use super::proto::*;
+use crate::body::{ACTIONS, Body};
+use crate::kernels::geometry::{AZ_PAD, K1, K2, S1, S2};
 use burn::nn::Linear;
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
-use deepfoids_ppo::model::{ACTIONS, ActorCritic, Body};
 use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
 
 /// The ONNX operator set the graph uses.
@@ -126,8 +130,9 @@ impl Builder {
         prefix: &str,
         conv: &Conv2d,
         input: &str,
-        kernel: i64,
-        stride: i64,
+        kernel: usize,
+        stride: usize,
+        pad_w: usize,
     ) -> String {
         let w = self.constant(&format!("{prefix}.weight"), conv.weight.val());
         let mut inputs = vec![input.to_string(), w];
@@ -135,9 +140,12 @@ impl Builder {
             inputs.push(self.constant(&format!("{prefix}.bias"), b.val()));
         }
         let refs: Vec<&str> = inputs.iter().map(String::as_str).collect();
+        let (k, s, p) = (kernel as i64, stride as i64, pad_w as i64);
+        // pads: [top, left, bottom, right]
         let attrs = vec![
-            ints("kernel_shape", &[kernel, kernel]),
-            ints("strides", &[stride, stride]),
+            ints("kernel_shape", &[k, k]),
+            ints("strides", &[s, s]),
+            ints("pads", &[0, p, 0, p]),
             int("group", 1),
         ];
         self.node("Conv", prefix, &refs, &format!("{prefix}.out"), attrs)
@@ -231,29 +239,16 @@ pub enum Head<'a> {
     },
 }
 
-/// The actor of a PPO model as an ONNX model (protobuf bytes).
-pub fn export_actor(model: &ActorCritic, meta: &Metadata) -> Vec<u8> {
-    let log_std = model.log_std.val();
-    export_policy(
-        &model.actor_body,
-        Head::Gaussian {
-            mean: &model.actor_mean,
-            log_std: &log_std,
-        },
-        meta,
-    )
-}
-
 /// An actor (body and head) as an ONNX model (protobuf bytes).
 pub fn export_policy(body: &Body, head: Head<'_>, meta: &Metadata) -> Vec<u8> {
-    let slope = 0.01f32;
+    let slope = body.slope() as f32;
     let mut b = Builder {
         nodes: vec![],
         init: vec![],
     };
-    let x = b.conv("conv1", &body.conv1, "obs_0", 8, 4);
+    let x = b.conv("conv1", &body.conv1, "obs_0", K1, S1, AZ_PAD);
     let x = b.leaky("conv1.act", &x, slope);
-    let x = b.conv("conv2", &body.conv2, &x, 4, 2);
+    let x = b.conv("conv2", &body.conv2, &x, K2, S2, 0);
     let x = b.leaky("conv2.act", &x, slope);
     let x = b.node(
         "Flatten",
@@ -369,7 +364,7 @@ pub fn export_policy(body: &Body, head: Head<'_>, meta: &Metadata) -> Vec<u8> {
         name: format!("deepfoids_{}", meta.behaviour),
         initializer: b.init,
         doc_string:
-            "DeepFoids actor (SPEC §8): simple visual encoder, 4 x 128 Swish, Gaussian head (PPO) or tanh-squashed Gaussian head (SAC)".into(),
+            "DeepFoids actor (SPEC §8): simple visual encoder (azimuth padded by one zero column each side), 4 x 128 Swish, Gaussian head (PPO) or tanh-squashed Gaussian head (SAC)".into(),
         input: vec![
             value_info(
                 "obs_0",

@@ -1,0 +1,558 @@
+//! The run driver: one environment loop for every algorithm.
+//!
+//! It owns what PPO and SAC share — the run folder, `--resume` (the newest
+//! checkpoint: weights, optimisers, counters, the algorithm's own state),
+//! `--init-from` (one or several runs: each behaviour takes the weights of a
+//! behaviour of the same name, else of the same species), the environment
+//! loop, per-behaviour budgets, logging, progress, checkpoints, the final
+//! policy with its ONNX files, and the outcome — and leaves to the algorithm
+//! ([`Trainer`], one [`Learner`] per behaviour) what happens at a decision.
+//!
+//! # The loop
+//! ```text
+//! reset → every learner: start (first actions)
+//! loop until every behaviour has its budget:
+//!     env.step(actions)
+//!     for each behaviour that decided:
+//!         stats ← rewards, episode ends, P, M         (while it trains)
+//!         learner.decide: record, maybe update, next actions
+//!         count its agent steps; log and print progress when due
+//!     checkpoint every `checkpoint_every` agent steps (all behaviours)
+//! final/: weights, state, <behaviour>.onnx
+//! ```
+//!
+//! # Budgets (ML-Agents' `max_steps`, per behaviour; issue 11 item 5)
+//! Each behaviour trains for its own budget of agent decisions — `--steps`,
+//! else its species' budget for the phase. A behaviour that has its budget
+//! keeps acting (sampling from its policy, storing nothing, no updates) until
+//! every behaviour has its own, so the others train in the same world.
+//!
+//! # Checkpoints and resume
+//! A checkpoint is written at the first decision past each `checkpoint_every`
+//! agent steps (all behaviours together), atomically. A resumed run continues
+//! with the weights, optimisers, counters and the algorithm's saved state,
+//! from a reset environment reseeded with `seed + resets`. A lock on the run
+//! folder and an exact resume (issue 13) belong in [`open_run`] and in the
+//! algorithms' `save`/`resume_learner`.
+
+use crate::backend::Backend;
+use crate::checkpoint::{
+    self, Algorithm, BehaviourState, PolicySource, RunState, find_source, replace_dir_atomic,
+};
+use crate::error::{LearnError, Result};
+use crate::logger::{Logger, Scalars};
+use crate::onnx::Metadata;
+use crate::progress::{Progress, ProgressMode};
+use crate::stats::EpisodeStats;
+use burn::prelude::Device;
+use deepfoids_env::{BehaviourBatch, BehaviourInfo, Env, Phase, Scene};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// What to train, where.
+pub struct RunArgs {
+    pub scene: Scene,
+    pub run_dir: PathBuf,
+    pub run_id: String,
+    pub seed: u64,
+    /// Agent decisions per behaviour (its own); `None`: the species' budget for the phase.
+    pub steps: Option<u64>,
+    pub resume: bool,
+    /// Runs to take the initial weights from (transfer learning).
+    pub init_from: Vec<PathBuf>,
+    pub backend: Backend,
+    pub progress: ProgressMode,
+    /// Where progress lines go (stdout if `None`).
+    pub progress_sink: Option<Box<dyn Write + Send>>,
+    /// Write checkpoints and the final policy (off for benchmarks).
+    pub save: bool,
+}
+
+/// How often a run saves and reports, from the algorithm's config.
+#[derive(Clone, Copy, Debug)]
+pub struct RunSettings {
+    pub checkpoint_every: u64,
+    pub keep_checkpoints: usize,
+    pub progress_every: u64,
+}
+
+/// Wall-clock split of a run, and the algorithm's own split of its updates.
+#[derive(Clone, Debug, Default)]
+pub struct Timing {
+    pub env: Duration,
+    pub inference: Duration,
+    pub update: Duration,
+    /// Parts of the updates (e.g. "gather", "forward", "backward", "optimiser").
+    pub parts: BTreeMap<&'static str, Duration>,
+}
+
+impl Timing {
+    pub fn part(&mut self, name: &'static str, d: Duration) {
+        *self.parts.entry(name).or_default() += d;
+    }
+}
+
+/// Size of a trainer's experience buffers.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BufferMemory {
+    /// Bytes allocated.
+    pub allocated: u64,
+    /// Bytes written to (resident).
+    pub resident: u64,
+    /// Transitions held.
+    pub transitions: u64,
+    /// The most bytes held at once during the run.
+    pub peak: u64,
+}
+
+impl std::ops::Add for BufferMemory {
+    type Output = BufferMemory;
+    fn add(self, o: BufferMemory) -> BufferMemory {
+        BufferMemory {
+            allocated: self.allocated + o.allocated,
+            resident: self.resident + o.resident,
+            transitions: self.transitions + o.transitions,
+            peak: self.peak + o.peak,
+        }
+    }
+}
+
+/// What a run reports back.
+pub struct TrainOutcome {
+    pub run_dir: PathBuf,
+    /// Agent decisions counted for training so far, all behaviours.
+    pub agent_steps: u64,
+    pub steps_this_run: u64,
+    pub wall_seconds: f64,
+    pub timing: Timing,
+    /// `(agent steps, mean reward per decision)` at each log point, all behaviours.
+    pub curve: Vec<(u64, f64)>,
+    /// `(agent steps, mean cumulative reward of the episodes finished)` where any finished.
+    pub episode_curve: Vec<(u64, f64)>,
+    pub final_dir: Option<PathBuf>,
+    pub buffer: BufferMemory,
+    /// Gradient updates in this run, all behaviours.
+    pub updates: u64,
+}
+
+/// Everything a learner gets at a decision.
+pub struct StepCtx<'a> {
+    pub seed: u64,
+    /// The environment tick of the observations (exploration noise is keyed by it).
+    pub tick: u64,
+    /// Whether the next action is taken for training (false once the
+    /// behaviour has its budget: act, store nothing, update nothing).
+    pub training: bool,
+    /// The behaviour's own agent steps counted so far, and its budget.
+    pub agent_steps: u64,
+    pub budget: u64,
+    pub timing: &'a mut Timing,
+}
+
+/// Everything a trainer gets to build a behaviour's learner.
+pub struct LearnerCtx<'a> {
+    pub info: &'a BehaviourInfo,
+    /// Index of the behaviour in the scene.
+    pub index: usize,
+    pub phase: Phase,
+    pub seed: u64,
+    pub backend: Backend,
+    /// The device with autodiff (training) and without (acting).
+    pub train_device: Device,
+    pub device: Device,
+}
+
+/// One behaviour's learner: the algorithm at a decision.
+pub trait Learner {
+    /// First actions from the initial observations (no rewards yet).
+    fn start(
+        &mut self,
+        batch: &BehaviourBatch,
+        actions: &mut [f32],
+        ctx: &mut StepCtx<'_>,
+    ) -> Result<()>;
+
+    /// The decision that just ended (its rewards and episode ends are in
+    /// `batch`), maybe updates, and the next actions for `batch`'s observations.
+    fn decide(
+        &mut self,
+        batch: &BehaviourBatch,
+        actions: &mut [f32],
+        ctx: &mut StepCtx<'_>,
+    ) -> Result<()>;
+
+    /// Whether the algorithm has a log point now (e.g. PPO after an update,
+    /// SAC every `summary_every` steps), at `agent_steps` of the behaviour.
+    fn log_due(&self, agent_steps: u64) -> bool;
+
+    /// Write the algorithm's scalars of the window since the last log point.
+    fn log(&mut self, out: &mut Scalars<'_>) -> Result<()>;
+
+    /// Gradient updates so far.
+    fn updates(&self) -> u64;
+
+    /// Save into `dir` under behaviour `name`: the weights, and for a
+    /// checkpoint also the optimisers and the algorithm's state.
+    fn save(&self, dir: &Path, name: &str, checkpoint: bool) -> Result<()>;
+
+    /// The actor as ONNX with ML-Agents' interface.
+    fn actor_onnx(&self, meta: &Metadata) -> Vec<u8>;
+
+    /// The experience buffers' size.
+    fn memory(&self) -> BufferMemory;
+}
+
+/// An algorithm: its configuration and how to build a behaviour's learner.
+pub trait Trainer {
+    type Learner: Learner;
+
+    fn algorithm(&self) -> Algorithm;
+
+    /// The config file, for error messages (e.g. "configs/train/ppo.toml").
+    fn config_name(&self) -> &'static str;
+
+    /// `(hidden, layers)` of the networks.
+    fn architecture(&self) -> (usize, usize);
+
+    /// The budget of a behaviour of `species` in `phase` (agent decisions).
+    fn budget(&self, species: &str, phase: Phase) -> u64;
+
+    fn settings(&self) -> RunSettings;
+
+    /// A learner with fresh weights.
+    fn new_learner(&self, ctx: &LearnerCtx<'_>) -> Result<Self::Learner>;
+
+    /// A learner continued from checkpoint folder `dir` (behaviour `state`).
+    fn resume_learner(
+        &self,
+        ctx: &LearnerCtx<'_>,
+        dir: &Path,
+        state: &BehaviourState,
+    ) -> Result<Self::Learner>;
+
+    /// A fresh learner with the weights of behaviour `source` of policy
+    /// folder `from` (transfer learning: fresh optimisers and counters).
+    fn transfer_learner(
+        &self,
+        ctx: &LearnerCtx<'_>,
+        from: &Path,
+        source: &BehaviourState,
+    ) -> Result<Self::Learner>;
+}
+
+/// A behaviour's learner and its counters in the driver.
+struct Behaviour<L> {
+    learner: L,
+    name: String,
+    species: String,
+    size_class: String,
+    n: usize,
+    agent_steps: u64,
+    budget: u64,
+    /// The last action was taken for training (its transition counts).
+    acting_for_training: bool,
+    stats: EpisodeStats,
+}
+
+/// The run folder of a training run (the place for issue 13's lock).
+pub fn open_run(run_dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(run_dir).map_err(LearnError::io(run_dir))
+}
+
+/// Train `trainer`'s algorithm on a scene. See the module documentation.
+pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
+    // ---- Arguments ---------------------------------------------------------------
+    let algo = trainer.algorithm();
+    let settings = trainer.settings();
+    let (hidden, layers) = trainer.architecture();
+    let run_dir = args.run_dir.clone();
+    open_run(&run_dir)?;
+    let phase = args.scene.phase;
+    let resume_resume = |reason: String| LearnError::Resume {
+        run: run_dir.clone(),
+        reason,
+    };
+    let resumed: Option<(PathBuf, RunState)> = if args.resume {
+        let (_, dir) = checkpoint::checkpoints(&run_dir)
+            .pop()
+            .ok_or_else(|| resume_resume("it has no checkpoint to resume from".into()))?;
+        let st = RunState::load_policy(&dir, algo, "--resume continues the run's own algorithm")?;
+        if st.scene != args.scene.id {
+            return Err(resume_resume(format!(
+                "the run trained on {}, not {}",
+                st.scene, args.scene.id
+            )));
+        }
+        st.check_architecture(&dir, hidden, layers, trainer.config_name())?;
+        Some((dir, st))
+    } else {
+        None
+    };
+    let sources: Vec<PolicySource> = if resumed.is_none() {
+        args.init_from
+            .iter()
+            .map(|run| {
+                let src = PolicySource::open(
+                    run,
+                    algo,
+                    "--init-from transfers between runs of the same algorithm",
+                )?;
+                src.state
+                    .check_architecture(&src.dir, hidden, layers, trainer.config_name())?;
+                Ok(src)
+            })
+            .collect::<Result<_>>()?
+    } else {
+        vec![]
+    };
+
+    // ---- Environment -------------------------------------------------------------
+    let resets = resumed.as_ref().map_or(0, |s| s.1.resets + 1);
+    let mut env = Env::new(args.scene.clone(), args.seed.wrapping_add(resets));
+    let mut tick = resumed.as_ref().map_or(0, |s| s.1.ticks);
+
+    // ---- Learners: one per behaviour ---------------------------------------------
+    let device = args.backend.device();
+    let train_device = device.clone().autodiff();
+    device.seed(args.seed);
+    let mut behaviours: Vec<Behaviour<T::Learner>> = Vec::new();
+    for (b, info) in env.behaviours().iter().enumerate() {
+        let ctx = LearnerCtx {
+            info,
+            index: b,
+            phase,
+            seed: args.seed,
+            backend: args.backend,
+            train_device: train_device.clone(),
+            device: device.clone(),
+        };
+        let mut agent_steps = 0;
+        let learner = if let Some((dir, st)) = &resumed {
+            let bs = st.behaviour(&info.name).ok_or_else(|| {
+                resume_resume(format!(
+                    "checkpoint {} has no behaviour {}",
+                    dir.display(),
+                    info.name
+                ))
+            })?;
+            agent_steps = bs.agent_steps;
+            trainer.resume_learner(&ctx, dir, bs)?
+        } else if !sources.is_empty() {
+            let (src, bs) = find_source(&sources, &info.name, &info.species)?;
+            trainer.transfer_learner(&ctx, &src.dir, bs)?
+        } else {
+            trainer.new_learner(&ctx)?
+        };
+        behaviours.push(Behaviour {
+            learner,
+            name: info.name.clone(),
+            species: info.species.clone(),
+            size_class: info.size_class.clone(),
+            n: info.count,
+            agent_steps,
+            budget: args
+                .steps
+                .unwrap_or_else(|| trainer.budget(&info.species, phase)),
+            acting_for_training: false,
+            stats: EpisodeStats::new(info.first, info.count),
+        });
+    }
+    let names: Vec<String> = behaviours.iter().map(|b| b.name.clone()).collect();
+    let mut logger = Logger::open(&run_dir, &names)?;
+    let mut state = resumed.map(|s| s.1).unwrap_or_else(|| RunState {
+        algo,
+        layout: crate::body::ENCODER_LAYOUT,
+        run_id: args.run_id.clone(),
+        scene: args.scene.id.clone(),
+        phase,
+        seed: args.seed,
+        backend: args.backend.as_str().into(),
+        agent_steps: 0,
+        ticks: 0,
+        resets: 0,
+        wall_seconds: 0.0,
+        init_from: args
+            .init_from
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
+        hidden,
+        layers,
+        behaviours: vec![],
+    });
+    state.resets = resets;
+    let start_steps = state.agent_steps;
+    let total_budget: u64 = behaviours.iter().map(|b| b.budget).sum();
+    let done: u64 = behaviours.iter().map(|b| b.agent_steps.min(b.budget)).sum();
+    let mut progress = Progress::new(
+        args.progress,
+        total_budget,
+        done,
+        &behaviours.iter().map(|b| b.agent_steps).collect::<Vec<_>>(),
+        settings.progress_every,
+        args.progress_sink,
+    );
+    let mut next_checkpoint =
+        (state.agent_steps / settings.checkpoint_every + 1) * settings.checkpoint_every;
+    let mut timing = Timing::default();
+    let (mut curve, mut episode_curve) = (Vec::new(), Vec::new());
+    let started = Instant::now();
+    let wall_before = state.wall_seconds;
+    let updates_before: u64 = behaviours.iter().map(|b| b.learner.updates()).sum();
+    let mut actions: Vec<Vec<f32>> = behaviours.iter().map(|b| vec![0.0; b.n * 3]).collect();
+
+    // First actions from the initial observations.
+    for (b, beh) in behaviours.iter_mut().enumerate() {
+        let training = beh.agent_steps < beh.budget;
+        let mut ctx = StepCtx {
+            seed: args.seed,
+            tick,
+            training,
+            agent_steps: beh.agent_steps,
+            budget: beh.budget,
+            timing: &mut timing,
+        };
+        beh.learner
+            .start(&env.output().behaviours[b], &mut actions[b], &mut ctx)?;
+        beh.acting_for_training = training;
+    }
+
+    // ---- The loop ----------------------------------------------------------------
+    while behaviours.iter().any(|b| b.agent_steps < b.budget) {
+        let t0 = Instant::now();
+        let out = env.step(&actions)?;
+        tick += 1;
+        timing.env += t0.elapsed();
+        for (b, beh) in behaviours.iter_mut().enumerate() {
+            let batch = &out.behaviours[b];
+            if !batch.decided {
+                continue;
+            }
+            if beh.acting_for_training {
+                beh.stats.record(batch, out);
+                beh.agent_steps += beh.n as u64;
+                state.agent_steps += beh.n as u64;
+            }
+            let training = beh.agent_steps < beh.budget;
+            let mut ctx = StepCtx {
+                seed: args.seed,
+                tick,
+                training,
+                agent_steps: beh.agent_steps,
+                budget: beh.budget,
+                timing: &mut timing,
+            };
+            beh.learner.decide(batch, &mut actions[b], &mut ctx)?;
+            let was_training = beh.acting_for_training;
+            beh.acting_for_training = training;
+            let finished_now = was_training && !training;
+            if !(beh.learner.log_due(beh.agent_steps) || finished_now && beh.stats.decisions() > 0)
+            {
+                continue;
+            }
+            let mut sc = Scalars {
+                logger: &mut logger,
+                behaviour: b,
+                step: beh.agent_steps,
+            };
+            let summary = beh.stats.log(&mut sc)?;
+            beh.learner.log(&mut sc)?;
+            let rate = (state.agent_steps - start_steps) as f64
+                / started.elapsed().as_secs_f64().max(1e-9);
+            sc.put("Perf/Agent Steps per Second", rate)?;
+            logger.flush()?;
+            curve.push((state.agent_steps, summary.reward_per_decision));
+            if let Some(ep) = summary.cumulative_reward {
+                episode_curve.push((state.agent_steps, ep));
+            }
+            progress.message(format!(
+                "{}: reward/decision {:.2}",
+                beh.name, summary.reward_per_decision
+            ));
+            if progress.line_due(b, beh.agent_steps) || finished_now {
+                let s = beh.stats.take_progress();
+                progress.print_line(b, &beh.name, beh.agent_steps, beh.budget, rate, &s);
+            }
+        }
+        progress.set_position(behaviours.iter().map(|b| b.agent_steps.min(b.budget)).sum());
+        if args.save && state.agent_steps >= next_checkpoint {
+            state.ticks = tick;
+            state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
+            let dir = checkpoint::checkpoint_dir(&run_dir, state.agent_steps);
+            save_all(&dir, &behaviours, &mut state, true, false)?;
+            checkpoint::prune(&run_dir, settings.keep_checkpoints);
+            logger.flush()?;
+            while next_checkpoint <= state.agent_steps {
+                next_checkpoint += settings.checkpoint_every;
+            }
+        }
+    }
+    state.ticks = tick;
+    state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
+    let final_dir = if args.save {
+        let fin = run_dir.join("final");
+        save_all(&fin, &behaviours, &mut state, false, true)?;
+        Some(fin)
+    } else {
+        None
+    };
+    logger.close()?;
+    progress.finish();
+    Ok(TrainOutcome {
+        run_dir,
+        agent_steps: state.agent_steps,
+        steps_this_run: state.agent_steps - start_steps,
+        wall_seconds: started.elapsed().as_secs_f64(),
+        timing,
+        curve,
+        episode_curve,
+        final_dir,
+        buffer: behaviours
+            .iter()
+            .fold(BufferMemory::default(), |m, b| m + b.learner.memory()),
+        updates: behaviours.iter().map(|b| b.learner.updates()).sum::<u64>() - updates_before,
+    })
+}
+
+/// Save every learner and the run state into `dir` (a checkpoint, or
+/// `final/` with each behaviour's actor as ONNX), atomically.
+fn save_all<L: Learner>(
+    dir: &Path,
+    behaviours: &[Behaviour<L>],
+    state: &mut RunState,
+    checkpoint: bool,
+    onnx: bool,
+) -> Result<()> {
+    state.behaviours = behaviours
+        .iter()
+        .map(|b| BehaviourState {
+            name: b.name.clone(),
+            species: b.species.clone(),
+            size_class: b.size_class.clone(),
+            agent_steps: b.agent_steps,
+            budget: b.budget,
+            updates: b.learner.updates(),
+        })
+        .collect();
+    replace_dir_atomic(dir, |tmp| {
+        for b in behaviours {
+            b.learner.save(tmp, &b.name, checkpoint)?;
+            if onnx {
+                let meta = Metadata {
+                    species: b.species.clone(),
+                    behaviour: b.name.clone(),
+                    scene: state.scene.clone(),
+                    algorithm: state.algo.as_str().into(),
+                    training_step: b.agent_steps,
+                    run: state.run_id.clone(),
+                };
+                let path = tmp.join(format!("{}.onnx", b.name));
+                std::fs::write(&path, b.learner.actor_onnx(&meta))
+                    .map_err(LearnError::io(&path))?;
+            }
+        }
+        state.save(tmp)
+    })
+}

@@ -1,0 +1,114 @@
+//! Trained actors driving scenes: what `eval`, `simulate`, `export`, `render`
+//! and `bench policy` need of a run, whatever its algorithm.
+
+use crate::checkpoint::{BehaviourState, PolicySource, RunState, find_source, policy_dir};
+use crate::error::Result;
+use crate::onnx::Metadata;
+use deepfoids_env::{Env, Policy, PolicyError};
+use std::path::{Path, PathBuf};
+
+/// One behaviour's trained actor.
+pub trait Actor {
+    /// Deterministic actions `[n, 3]` in [−1, 1] on the fused kernels
+    /// (`grids` `[n, 18, 20, 34]`, `vectors` `[n, 6]`).
+    fn deterministic(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32>;
+
+    /// The same on Burn's own layers (the benchmark's and the tests' reference).
+    fn deterministic_reference(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32>;
+
+    /// Sampled actions, the noise of agent `a` keyed by `(seed, first + a, tick)`.
+    fn sample(
+        &self,
+        grids: &[f32],
+        vectors: &[f32],
+        first: usize,
+        seed: u64,
+        tick: u64,
+    ) -> Vec<f32>;
+
+    /// The actor as ONNX with ML-Agents' interface.
+    fn onnx(&self, meta: &Metadata) -> Vec<u8>;
+}
+
+/// Loads behaviour `source` of a policy folder as an actor.
+pub type ActorLoader<'a> = dyn Fn(&Path, &RunState, &BehaviourState) -> Result<Box<dyn Actor>> + 'a;
+
+/// The actors of a run, one per behaviour of the scene they drive (a
+/// behaviour missing from the run takes the actor of one of its species).
+pub struct ActorPolicy {
+    actors: Vec<Box<dyn Actor>>,
+    /// Act with the deterministic output (default) instead of sampling.
+    pub deterministic: bool,
+    pub seed: u64,
+    /// The policy folder (final/ or a checkpoint).
+    pub source: PathBuf,
+    pub state: RunState,
+}
+
+impl ActorPolicy {
+    /// Run `run`'s policy (its `final/`, or checkpoint `step`) for `env`'s behaviours.
+    pub fn load(
+        run: &Path,
+        step: Option<u64>,
+        env: &Env,
+        deterministic: bool,
+        seed: u64,
+        loader: &ActorLoader<'_>,
+    ) -> Result<Self> {
+        let dir = policy_dir(run, step)?;
+        let state = RunState::load(&dir)?;
+        state.check_layout(&dir)?;
+        let sources = [PolicySource {
+            dir: dir.clone(),
+            state: state.clone(),
+        }];
+        let actors = env
+            .behaviours()
+            .iter()
+            .map(|b| {
+                let (src, bs) = find_source(&sources, &b.name, &b.species)?;
+                loader(&src.dir, &src.state, bs)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self {
+            actors,
+            deterministic,
+            seed,
+            source: dir,
+            state,
+        })
+    }
+
+    /// The actor of behaviour `b`.
+    pub fn actor(&self, b: usize) -> &dyn Actor {
+        self.actors[b].as_ref()
+    }
+}
+
+impl Policy for ActorPolicy {
+    fn name(&self) -> String {
+        format!("{} ({})", self.state.run_id, self.state.algo)
+    }
+
+    fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
+        let out = env.output();
+        for (b, batch) in out.behaviours.iter().enumerate() {
+            if !env.awaiting(b) {
+                continue;
+            }
+            let actor = &self.actors[b];
+            actions[b] = if self.deterministic {
+                actor.deterministic(&batch.grids, &batch.vectors)
+            } else {
+                actor.sample(
+                    &batch.grids,
+                    &batch.vectors,
+                    batch.first,
+                    self.seed,
+                    out.tick,
+                )
+            };
+        }
+        Ok(())
+    }
+}
