@@ -17,8 +17,8 @@ pub struct Cli {
     /// Folder of the TOML configuration [default: ./configs, else $DEEPFOIDS_CONFIGS, else the repository's]
     #[arg(long, global = true, value_name = "DIR")]
     pub configs: Option<PathBuf>,
-    /// Worker threads [default: one per core]
-    #[arg(long, global = true, value_name = "N")]
+    /// Worker threads, 1 to 1024 (0 is refused) [default: one per core]
+    #[arg(long, global = true, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -44,6 +44,8 @@ pub enum Command {
     Compare(CompareArgs),
     /// Render a labelled image dataset (YOLO, COCO, masks) of a scene driven by a policy
     Render(commands::render::RenderArgs),
+    /// Watch a school: one self-contained HTML replay (3D, scrub, follow a fish, P/M), and GIF clips
+    Replay(commands::replay::ReplayArgs),
     /// Benchmarks
     Bench {
         #[command(subcommand)]
@@ -65,8 +67,21 @@ pub struct SceneArgs {
     pub phase: Phase,
 }
 
-fn parse_phase(s: &str) -> Result<Phase, String> {
+pub(crate) fn parse_phase(s: &str) -> Result<Phase, String> {
     s.parse()
+}
+
+/// `--threads`: 1 to `MAX_THREADS`. 0 is refused rather than read as "all
+/// cores" (rayon's meaning) or "one" (what it silently meant before): leaving
+/// the option out already means one thread per core.
+fn parse_threads(s: &str) -> Result<usize, String> {
+    let max = deepfoids_env::limits::MAX_THREADS;
+    match s.parse::<usize>() {
+        Ok(0) => Err("0 threads cannot run anything; give 1 or more, or leave --threads out for one thread per core".into()),
+        Ok(n) if n <= max => Ok(n),
+        Ok(n) => Err(format!("{n} is above the limit of {max} threads")),
+        Err(_) => Err(format!("`{s}` is not a thread count (1 to {max})")),
+    }
 }
 
 #[derive(Args, Debug)]
@@ -116,6 +131,12 @@ pub struct EvalArgs {
     /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Also write replay.html (see `deepfoids replay`) next to the plots
+    #[arg(long)]
+    pub replay: bool,
+    /// Frames per simulated second stored in replay.html (the viewer interpolates between them)
+    #[arg(long, default_value_t = 5.0, value_name = "FPS")]
+    pub replay_fps: f64,
 }
 
 /// The training algorithm.
@@ -318,7 +339,7 @@ pub fn run() -> Result<()> {
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n)
             .build_global()
             .context("cannot set up the thread pool")?;
     }
@@ -347,6 +368,7 @@ pub fn run() -> Result<()> {
             what: BenchCommand::Policy(a),
         }) => commands::bench::policy(&a),
         Some(Command::Render(a)) => commands::render::run(&dirs, &a),
+        Some(Command::Replay(a)) => commands::replay::run(&dirs, &a),
         Some(Command::Bench {
             what: BenchCommand::Render(a),
         }) => commands::render::bench(&dirs, &a),

@@ -2,7 +2,9 @@
 //! lives in the library crates (`deepfoids-env`, `deepfoids-sensors`); this
 //! crate parses arguments, drives the loops, and writes files and plots.
 
+pub mod bounds;
 pub mod cli;
+pub mod clip;
 pub mod commands;
 pub mod io;
 pub mod plot;

@@ -1,6 +1,7 @@
 //! Evaluating a school and writing what `eval` reports: `metrics.csv`,
 //! `summary.json`, and the P/M, depth and trajectory plots.
 
+use crate::cli::{PolicyArgs, SceneArgs};
 use crate::io::{AtomicFile, write_atomic};
 use crate::plot::{FONT, pe, save_png};
 use anyhow::{Context, Result};
@@ -8,7 +9,7 @@ use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{Env, Policy};
 use plotters::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
@@ -28,12 +29,14 @@ pub struct Evaluation {
     pub wall_seconds: f64,
 }
 
-/// Run `env` (fresh from `Env::new`) with `policy` for `seconds`, sampling every tick.
+/// Run `env` (fresh from `Env::new`) with `policy` for `seconds`, sampling every
+/// tick; `observe(env, tick, ticks)` sees the env after every step (progress
+/// bars, replay recording).
 pub fn evaluate(
     env: &mut Env,
     policy: &mut dyn Policy,
     seconds: f64,
-    mut progress: impl FnMut(u64, u64),
+    mut observe: impl FnMut(&Env, u64, u64),
 ) -> Result<Evaluation> {
     let mut actions = action_buffers(env);
     let ticks = (seconds / env.tick_seconds()).round().max(1.0) as u64;
@@ -64,7 +67,7 @@ pub fn evaluate(
         recorder.count(out);
         recorder.sample(out);
         tracks.push(snapshot(env));
-        progress(t + 1, ticks);
+        observe(env, t + 1, ticks);
     }
     Ok(Evaluation {
         recorder,
@@ -86,6 +89,58 @@ pub struct EvalMeta<'a> {
     pub seconds: f64,
     pub wall_seconds: f64,
     pub ticks_per_second: f64,
+    /// How to run this evaluation again (`replay --from` does).
+    pub rerun: RunArgs,
+}
+
+/// The command-line values that reproduce a run's school exactly (seeded
+/// runs are deterministic): recorded in `summary.json` by `eval` and in
+/// `simulate.json` by `simulate`, read back by `replay --from`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunArgs {
+    /// `--scene` as given (an id or a path).
+    pub scene: String,
+    pub phase: String,
+    pub seed: u64,
+    /// `--policy` as given (a baseline name, a run folder or a `.onnx` file).
+    pub policy: String,
+    pub checkpoint: Option<u64>,
+    pub stochastic: bool,
+    /// Simulated seconds.
+    pub seconds: f64,
+}
+
+impl RunArgs {
+    /// The values of `scene` and `policy` options as the commands parse them.
+    pub fn new(scene: &SceneArgs, policy: &str, opts: &PolicyArgs, seconds: f64) -> Self {
+        Self {
+            scene: scene.scene.clone(),
+            phase: scene.phase.as_str().to_string(),
+            seed: scene.seed,
+            policy: policy.to_string(),
+            checkpoint: opts.checkpoint,
+            stochastic: opts.stochastic,
+            seconds,
+        }
+    }
+
+    /// Back to the options, for loading the scene and policy again.
+    pub fn options(&self) -> Result<(SceneArgs, PolicyArgs)> {
+        Ok((
+            SceneArgs {
+                scene: self.scene.clone(),
+                seed: self.seed,
+                phase: self
+                    .phase
+                    .parse()
+                    .map_err(|e| anyhow::anyhow!("phase `{}`: {e}", self.phase))?,
+            },
+            PolicyArgs {
+                checkpoint: self.checkpoint,
+                stochastic: self.stochastic,
+            },
+        ))
+    }
 }
 
 /// Write `metrics.csv`, `summary.json`, `pm.png`, `depth.png` and `trajectories.png` to `dir`.

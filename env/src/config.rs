@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// Everything that can go wrong while reading configuration.
@@ -28,6 +29,15 @@ pub enum ConfigError {
         field: String,
         message: String,
     },
+    /// A value beyond its bound of [`crate::limits`].
+    #[error("{path}: {field} = {value} is {} the limit of {limit}", if *above { "above" } else { "below" })]
+    Limit {
+        path: PathBuf,
+        field: String,
+        value: String,
+        above: bool,
+        limit: String,
+    },
     #[error("unknown {what} `{name}` (looked for {path}); available: {}", available.join(", "))]
     Unknown {
         what: &'static str,
@@ -43,6 +53,98 @@ impl ConfigError {
             path: path.to_path_buf(),
             field: field.into(),
             message: message.into(),
+        }
+    }
+
+    /// The message without the file it names.
+    fn detail(&self) -> String {
+        match self {
+            ConfigError::Io { source, .. } => source.to_string(),
+            ConfigError::Parse { message, .. } => message.clone(),
+            ConfigError::Invalid { field, message, .. } => format!("field `{field}`: {message}"),
+            ConfigError::Limit {
+                field,
+                value,
+                above,
+                limit,
+                ..
+            } => format!(
+                "{field} = {value} is {} the limit of {limit}",
+                if *above { "above" } else { "below" }
+            ),
+            ConfigError::Unknown { .. } => self.to_string(),
+        }
+    }
+}
+
+/// Values a scene file overrides in a species or site file, and where they are
+/// written, so that an error they cause names the scene file.
+#[derive(Clone, Copy, Debug)]
+pub struct Overrides<'a> {
+    /// The scene file that holds them.
+    pub file: &'a Path,
+    /// Their table in that file, e.g. `species_overrides.coho`.
+    pub section: &'a str,
+    pub table: &'a toml::Table,
+}
+
+impl Overrides<'_> {
+    /// Whether the overrides set `field` (`a.b.c`, `a[1]`) or a table above it.
+    fn hold(&self, field: &str) -> bool {
+        let mut table = self.table;
+        for key in field.split('.') {
+            let key = key.split('[').next().unwrap_or(key);
+            match table.get(key) {
+                Some(toml::Value::Table(t)) => table = t,
+                Some(_) => return true,
+                None => return false,
+            }
+        }
+        true
+    }
+
+    /// Point an error of the file at `base` (merged with these overrides) at the
+    /// scene file when an override caused it: the field it names is overridden,
+    /// or `base` alone passes. `loads(key)` says whether `base` with only the
+    /// override `key` (`None`: none) loads; the first key that breaks it is named.
+    fn blame(
+        &self,
+        e: ConfigError,
+        base: &Path,
+        loads: impl Fn(Option<&str>) -> bool,
+    ) -> ConfigError {
+        let in_scene = |field: &str| format!("{}.{field}", self.section);
+        match e {
+            ConfigError::Invalid { field, message, .. } if self.hold(&field) => {
+                ConfigError::Invalid {
+                    path: self.file.to_path_buf(),
+                    field: in_scene(&field),
+                    message,
+                }
+            }
+            ConfigError::Limit {
+                field,
+                value,
+                above,
+                limit,
+                ..
+            } if self.hold(&field) => ConfigError::Limit {
+                path: self.file.to_path_buf(),
+                field: in_scene(&field),
+                value,
+                above,
+                limit,
+            },
+            e @ (ConfigError::Io { .. } | ConfigError::Unknown { .. }) => e,
+            e if loads(None) => ConfigError::Invalid {
+                path: self.file.to_path_buf(),
+                field: match self.table.keys().find(|k| !loads(Some(k))) {
+                    Some(key) => in_scene(key),
+                    None => self.section.to_string(),
+                },
+                message: format!("{} (applied to {})", e.detail(), base.display()),
+            },
+            e => e,
         }
     }
 }
@@ -267,7 +369,7 @@ impl SpeciesConfig {
                 ));
             }
         }
-        Ok(())
+        crate::limits::species(self, path)
     }
 }
 
@@ -329,11 +431,12 @@ impl SiteConfig {
         if self.attenuation.is_nan() || self.attenuation < 0.0 {
             return Err(ConfigError::invalid(path, "attenuation", "must be ≥ 0"));
         }
-        Ok(())
+        crate::limits::site(self, path)
     }
 }
 
 /// Cage geometry (SPEC §1). The surface is `y = 0`, the bottom `y = −height`.
+/// Every dimension is positive and at most [`crate::limits::MAX_CAGE_M`] (1 km).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "shape", rename_all = "lowercase", deny_unknown_fields)]
 pub enum CageConfig {
@@ -372,7 +475,7 @@ pub struct GroupConfig {
     /// Size class of that species; default `regular`.
     #[serde(default = "default_size_class")]
     pub size_class: String,
-    /// Number of fish (≥ 1).
+    /// Number of fish, 1 to [`crate::limits::MAX_FISH`] (200,000; also in total).
     pub count: usize,
     /// Body scale override; default: the size class' `body_scale`.
     #[serde(default)]
@@ -603,54 +706,75 @@ impl ConfigDirs {
         self.named("scene", "scenes", id_or_path)
     }
 
+    /// Species `name`, with a scene's overrides applied.
     pub fn species(
         &self,
         name: &str,
-        overrides: Option<&toml::Table>,
+        overrides: Option<Overrides>,
     ) -> Result<SpeciesConfig, ConfigError> {
         let path = self.named("species", "species", name)?;
-        let mut table: toml::Table = read_toml(&path)?;
-        if let Some(o) = overrides {
-            merge(&mut table, o);
-        }
-        let species: SpeciesConfig = from_table(&path, table)?;
-        if species.name != name {
-            return Err(ConfigError::invalid(
-                &path,
-                "name",
-                format!("must match the file name `{name}`"),
-            ));
-        }
-        species.validate(&path)?;
-        Ok(species)
+        load_with(&path, overrides, |s: &SpeciesConfig, path| {
+            if s.name != name {
+                return Err(ConfigError::invalid(
+                    path,
+                    "name",
+                    format!("must match the file name `{name}`"),
+                ));
+            }
+            s.validate(path)
+        })
     }
 
-    pub fn site(&self, name: &str, overrides: &toml::Table) -> Result<SiteConfig, ConfigError> {
+    /// Site `name`, with a scene's overrides applied.
+    pub fn site(
+        &self,
+        name: &str,
+        overrides: Option<Overrides>,
+    ) -> Result<SiteConfig, ConfigError> {
         let path = self.named("site", "sites", name)?;
-        let mut table: toml::Table = read_toml(&path)?;
-        merge(&mut table, overrides);
-        let site: SiteConfig = from_table(&path, table)?;
-        site.validate(&path)?;
-        Ok(site)
+        load_with(&path, overrides, SiteConfig::validate)
     }
 
     pub fn rewards(&self, phase: Phase) -> Result<RewardWeights, ConfigError> {
         let path = self.named("reward weights", "rewards", phase.as_str())?;
-        read_toml(&path)
+        let weights: RewardWeights = read_toml(&path)?;
+        crate::limits::rewards(&weights, &path)?;
+        Ok(weights)
     }
 }
 
-/// Read and deserialize a TOML file; errors name the file, line and field.
+/// Read and deserialize a TOML file of at most [`crate::limits::MAX_CONFIG_BYTES`];
+/// errors name the file, line and field.
 pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+    let io = |source| ConfigError::Io {
         path: path.to_path_buf(),
         source,
+    };
+    let max = crate::limits::MAX_CONFIG_BYTES;
+    let mut bytes = Vec::new();
+    // `take` rather than the file's length: a FIFO or /dev/zero has none.
+    std::fs::File::open(path)
+        .and_then(|f| f.take(max + 1).read_to_end(&mut bytes))
+        .map_err(io)?;
+    if bytes.len() as u64 > max {
+        return Err(ConfigError::Parse {
+            path: path.to_path_buf(),
+            message: format!(
+                "the file is larger than {max} bytes, the limit of a configuration file"
+            ),
+        });
+    }
+    let text = String::from_utf8(bytes).map_err(|e| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text ({e})"),
+        ))
     })?;
     toml::from_str(&text).map_err(|e| ConfigError::Parse {
         path: path.to_path_buf(),
         message: match e.span() {
             Some(span) => {
-                let before = &text[..span.start.min(text.len())];
+                let before = &text[..text.floor_char_boundary(span.start)];
                 let line = before.matches('\n').count() + 1;
                 let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
                 format!("line {line}, column {column}: {}", e.message())
@@ -668,8 +792,46 @@ fn from_table<T: serde::de::DeserializeOwned>(
         .try_into()
         .map_err(|e: toml::de::Error| ConfigError::Parse {
             path: path.to_path_buf(),
-            message: format!("{} (after applying the scene's overrides)", e.message()),
+            message: e.message().to_string(),
         })
+}
+
+/// Read the file at `path`, apply `overrides`, deserialize and `validate`;
+/// an error the overrides cause names the scene file that holds them.
+fn load_with<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    overrides: Option<Overrides>,
+    validate: impl Fn(&T, &Path) -> Result<(), ConfigError>,
+) -> Result<T, ConfigError> {
+    let base: toml::Table = read_toml(path)?;
+    let load = |table: toml::Table| {
+        let value: T = from_table(path, table)?;
+        validate(&value, path).map(|()| value)
+    };
+    match overrides.filter(|o| !o.table.is_empty()) {
+        None => load(base),
+        Some(o) => {
+            let mut merged = base.clone();
+            merge(&mut merged, o.table);
+            load(merged).map_err(|e| {
+                // Does `base` load with no override (`None`) or only override `key`?
+                let loads = |key: Option<&str>| {
+                    let mut table = base.clone();
+                    if let Some(k) = key {
+                        let one: toml::Table = o
+                            .table
+                            .iter()
+                            .filter(|(name, _)| *name == k)
+                            .map(|(name, v)| (name.clone(), v.clone()))
+                            .collect();
+                        merge(&mut table, &one);
+                    }
+                    load(table).is_ok()
+                };
+                o.blame(e, path, loads)
+            })
+        }
+    }
 }
 
 /// Overlay `over` onto `base`, recursing into tables.

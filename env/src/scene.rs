@@ -5,9 +5,10 @@
 
 use crate::cage::Cage;
 use crate::config::{
-    CageConfig, Clock, ConfigDirs, ConfigError, ObstacleConfig, Phase, PhysicsConfig, Range,
-    RewardWeights, SceneFile, SiteConfig, SpeciesConfig, parse_clock, read_toml,
+    CageConfig, Clock, ConfigDirs, ConfigError, ObstacleConfig, Overrides, Phase, PhysicsConfig,
+    Range, RewardWeights, SceneFile, SiteConfig, SpeciesConfig, parse_clock, read_toml,
 };
+use crate::limits;
 use deepfoids_sensors::Obstacle;
 use glam::Vec3;
 use serde::Serialize;
@@ -38,6 +39,37 @@ impl BehaviourSpec {
     }
 }
 
+/// The scene file's sizes, counts and durations within [`crate::limits`],
+/// checked before anything else is loaded or allocated.
+fn check_sizes(file: &SceneFile, path: &Path) -> Result<(), ConfigError> {
+    let n_groups = file.groups.len() as u64;
+    limits::check_count(path, "group", n_groups, limits::MAX_GROUPS as u64, "groups")?;
+    let max = limits::MAX_FISH as u64;
+    let mut total = 0u64;
+    for (gi, g) in file.groups.iter().enumerate() {
+        limits::check_count(
+            path,
+            &format!("group[{gi}].count"),
+            g.count as u64,
+            max,
+            "fish",
+        )?;
+        total += g.count as u64;
+    }
+    if total > max {
+        return Err(ConfigError::Limit {
+            path: path.to_path_buf(),
+            field: "the groups' counts".into(),
+            value: format!("{total} fish in all"),
+            above: true,
+            limit: format!("{max} fish in a scene"),
+        });
+    }
+    limits::cage(&file.cage, path)?;
+    limits::obstacles(&file.obstacles, path)?;
+    limits::physics(&file.physics, path)
+}
+
 /// A fully loaded scene.
 #[derive(Clone, Debug, Serialize)]
 pub struct Scene {
@@ -66,7 +98,15 @@ impl Scene {
             .and_then(|s| s.to_str())
             .unwrap_or("scene")
             .to_string();
-        let site = dirs.site(&file.site, &file.site_overrides)?;
+        check_sizes(&file, &path)?;
+        let site = dirs.site(
+            &file.site,
+            Some(Overrides {
+                file: &path,
+                section: "site_overrides",
+                table: &file.site_overrides,
+            }),
+        )?;
         let clock = parse_clock(&path, &file.date, &file.time, file.clock_runs)?;
         let rewards = dirs.rewards(phase)?;
 
@@ -97,7 +137,17 @@ impl Scene {
                     "must be at least 1",
                 ));
             }
-            let species = dirs.species(&g.species, file.species_overrides.get(&g.species))?;
+            let section = format!("species_overrides.{}", g.species);
+            let species = dirs.species(
+                &g.species,
+                file.species_overrides
+                    .get(&g.species)
+                    .map(|table| Overrides {
+                        file: &path,
+                        section: &section,
+                        table,
+                    }),
+            )?;
             let class = species.size_classes.get(&g.size_class).ok_or_else(|| {
                 ConfigError::invalid(
                     &path,
@@ -229,6 +279,12 @@ impl Scene {
             ));
         }
         for b in &self.behaviours {
+            limits::steps_per_decision(
+                p.dt_sim,
+                b.species.decision_interval,
+                &b.species.name,
+                path,
+            )?;
             if b.species.decision_interval < p.dt_sim {
                 return Err(ConfigError::invalid(
                     path,

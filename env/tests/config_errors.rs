@@ -1,34 +1,7 @@
 //! Bad configuration gets a clear error naming the file, the field and what is allowed.
 mod common;
-use common::dirs;
+use common::{configs_with, dirs, load_err};
 use deepfoids_env::{ConfigDirs, Phase, Scene};
-use std::path::{Path, PathBuf};
-
-/// A copy of the real configs in a temp folder, with `edit` applied to one file.
-fn configs_with(name: &str, file: &str, edit: impl FnOnce(String) -> String) -> PathBuf {
-    let root = std::env::temp_dir().join(format!(
-        "deepfoids-config-test-{name}-{}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&root);
-    for sub in ["species", "sites", "scenes", "rewards"] {
-        std::fs::create_dir_all(root.join(sub)).unwrap();
-        for e in std::fs::read_dir(dirs().root.join(sub)).unwrap() {
-            let p = e.unwrap().path();
-            std::fs::copy(&p, root.join(sub).join(p.file_name().unwrap())).unwrap();
-        }
-    }
-    let path = root.join(file);
-    let text = std::fs::read_to_string(&path).unwrap();
-    std::fs::write(&path, edit(text)).unwrap();
-    root
-}
-
-fn load_err(root: &Path, scene: &str) -> String {
-    Scene::load(&ConfigDirs::new(root), scene, Phase::Pretrain)
-        .unwrap_err()
-        .to_string()
-}
 
 #[test]
 fn an_unknown_scene_lists_the_available_ones() {

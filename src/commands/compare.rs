@@ -16,6 +16,7 @@ use crate::cli::CompareArgs;
 use crate::plot::{FONT, pe, save_png};
 use crate::report::{PALETTE, evaluate};
 use anyhow::{Context, Result, bail};
+use deepfoids_env::limits::MAX_SEEDS;
 use deepfoids_env::metrics::{SchoolState, Summary};
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, TERM_NAMES};
 use deepfoids_learn::checkpoint::{RunState, policy_dir};
@@ -117,12 +118,8 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
             args.runs.len()
         );
     }
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        bail!("--seconds must be a positive number, got {}", args.seconds);
-    }
-    if args.seeds == 0 {
-        bail!("--seeds must be at least 1");
-    }
+    crate::bounds::seconds("--seconds", args.seconds)?;
+    crate::bounds::count_within("--seeds", args.seeds, [1, MAX_SEEDS], "seeds")?;
     if !(0.0..1.0).contains(&args.smoothing) {
         bail!("--smoothing must lie in [0, 1), got {}", args.smoothing);
     }
@@ -136,6 +133,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| runs[0].state.scene.clone());
     let scene = load_scene(dirs, &scene_id, runs[0].state.phase)?;
+    let _lock = crate::io::lock_dir(&args.out)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
 
@@ -180,7 +178,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         for seed in 0..args.seeds {
             let mut env = Env::new(scene.clone(), seed);
             let mut policy = load_trained(&r.dir, None, &env, true, seed)?;
-            let eval = evaluate(&mut env, &mut policy, args.seconds, |_, _| {})?;
+            let eval = evaluate(&mut env, &mut policy, args.seconds, |_, _, _| {})?;
             summaries.push(eval.recorder.summary(eval.seconds));
         }
         rows.push(average(&summaries));

@@ -6,6 +6,7 @@ pub mod eval;
 pub mod export;
 pub mod pipeline;
 pub mod render;
+pub mod replay;
 pub mod scenes;
 pub mod sensor_view;
 pub mod simulate;
@@ -21,8 +22,12 @@ use deepfoids_learn::policy::{Actor, ActorPolicy};
 use std::path::Path;
 
 /// Load a scene with its reward weights; the error names the file and field.
+/// An environment of it must fit into the machine's memory
+/// (`deepfoids_env::memory`), checked before anything is allocated.
 pub fn load_scene(dirs: &ConfigDirs, id: &str, phase: Phase) -> Result<Scene> {
-    Ok(Scene::load(dirs, id, phase)?)
+    let scene = Scene::load(dirs, id, phase)?;
+    deepfoids_env::memory::check_env(&scene)?;
+    Ok(scene)
 }
 
 /// The policy named on the command line: a scripted baseline (parameters from

@@ -15,9 +15,11 @@
 //! seed), and only its missing frames are rendered.
 
 use super::{load_scene, make_policy};
+use crate::bounds::{at_most, count_within, positive_at_most};
 use crate::cli::{PolicyArgs, SceneArgs};
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use deepfoids_env::limits::{MAX_FPS, MAX_FRAMES, MAX_IMAGE_PX, MAX_SECONDS};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
 use deepfoids_render::dataset::ImageFormat;
@@ -157,21 +159,32 @@ impl Clip {
     }
 }
 
+/// `--width` and `--height` within `[16, MAX_IMAGE_PX]`.
+fn image_size(width: u32, height: u32) -> Result<()> {
+    let px = [16, MAX_IMAGE_PX as u64];
+    count_within("--width", width as u64, px, "px")?;
+    count_within("--height", height as u64, px, "px")
+}
+
 fn ticks(seconds: f64, env: &Env) -> u64 {
     (seconds / env.tick_seconds()).round().max(0.0) as u64
 }
 
 pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
-    if args.frames == 0 || !(args.fps > 0.0 && args.fps.is_finite()) {
-        bail!(
-            "--frames must be ≥ 1 and --fps positive (got {} and {})",
-            args.frames,
-            args.fps
-        );
+    let frames = [1, MAX_FRAMES as u64];
+    count_within("--frames", args.frames as u64, frames, "frames")?;
+    count_within("--clip-frames", args.clip_frames as u64, frames, "frames")?;
+    image_size(args.width, args.height)?;
+    positive_at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
+    if args.warmup.is_nan() || args.warmup < 0.0 {
+        bail!("--warmup must be 0 or more seconds, got {}", args.warmup);
     }
-    if args.width < 16 || args.height < 16 || args.clip_frames == 0 {
-        bail!("--width and --height must be ≥ 16 and --clip-frames ≥ 1");
-    }
+    at_most(
+        "--warmup",
+        args.warmup,
+        MAX_SECONDS,
+        "s (one simulated day)",
+    )?;
     if !(0.0..=1.0).contains(&args.min_contrast) {
         bail!(
             "--min-contrast must be in [0, 1] (a share of the 8-bit range), got {}",
@@ -195,6 +208,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
             }
         })
         .collect();
+    let _lock = crate::io::lock_dir(&args.out)?;
     let dataset = Dataset::new(
         &args.out,
         args.format,
@@ -325,6 +339,13 @@ fn dir_bytes(dir: &Path) -> u64 {
 /// `deepfoids bench render`: frames per second of rendering with every label
 /// written (image, mask, YOLO, frame JSON), and with the simulation included.
 pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
+    count_within(
+        "--frames",
+        args.frames as u64,
+        [1, MAX_FRAMES as u64],
+        "frames",
+    )?;
+    image_size(args.width, args.height)?;
     let scene = load_scene(dirs, &args.scene, deepfoids_env::Phase::Pretrain)?;
     let clip = ClipParams::from_scene(&scene, 0, args.seed, args.camera);
     let pa = PolicyArgs {

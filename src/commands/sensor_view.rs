@@ -5,6 +5,7 @@ use super::load_scene;
 use crate::cli::SensorViewArgs;
 use crate::plot::{FONT, pe, save_png};
 use anyhow::{Result, bail};
+use deepfoids_env::limits::MAX_TICKS;
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{Chase, ConfigDirs, Env, Policy, RandomPolicy};
 use deepfoids_sensors::{AZ_CELLS, CELLS, EL_CELLS, FRAME_LEN, GridSensor, STACK, STACKED_LEN};
@@ -20,6 +21,7 @@ pub const TYPE_COLOURS: [(&str, RGBColor); 5] = [
 ];
 
 pub fn run(dirs: &ConfigDirs, args: &SensorViewArgs) -> Result<()> {
+    crate::bounds::count_within("--step", args.step, [0, MAX_TICKS], "ticks")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);

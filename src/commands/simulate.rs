@@ -1,10 +1,12 @@
 //! `deepfoids simulate`: run a scene with a policy, write `trajectories.csv`
-//! (one row per fish per decision of the fastest species) and print a summary.
+//! (one row per fish per decision of the fastest species) and `simulate.json`
+//! (the options that made it, for `replay --from`), and print a summary.
 
 use super::{load_scene, make_policy};
 use crate::cli::SimulateArgs;
-use crate::io::AtomicFile;
-use anyhow::{Context, Result, bail};
+use crate::io::{AtomicFile, write_atomic};
+use crate::report::RunArgs;
+use anyhow::{Context, Result};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, StepOutput, TERM_NAMES};
 use std::io::Write;
@@ -42,15 +44,14 @@ impl Tally {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        bail!("--seconds must be a positive number, got {}", args.seconds);
-    }
+    crate::bounds::seconds("--seconds", args.seconds)?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let out_dir = args
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
+    let _lock = crate::io::lock_dir(&out_dir)?;
     let mut env = Env::new(scene, sa.seed);
     let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &args.policy_args)?;
     let mut actions = action_buffers(&env);
@@ -116,6 +117,12 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     let wall = start.elapsed().as_secs_f64();
     csv.commit()
         .with_context(|| format!("writing {}", csv_path.display()))?;
+    // What `replay --from` needs to put the CSV back into its cage.
+    let rerun = RunArgs::new(sa, &args.policy, &args.policy_args, args.seconds);
+    write_atomic(
+        out_dir.join("simulate.json"),
+        serde_json::to_string_pretty(&rerun)?.as_bytes(),
+    )?;
 
     let s = env.scene();
     let fish = env.world().len();

@@ -212,9 +212,19 @@ fn print_training(o: &TrainOutcome) {
 
 /// Evaluate a run's final policy deterministically; writes `<run>/eval/`.
 pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
-    let mut env = Env::new(scene, opts.seed.wrapping_add(1_000_003));
+    let env_seed = opts.seed.wrapping_add(1_000_003);
+    let rerun = crate::report::RunArgs {
+        scene: scene.source.display().to_string(),
+        phase: scene.phase.as_str().to_string(),
+        seed: env_seed,
+        policy: run_dir.display().to_string(),
+        checkpoint: None,
+        stochastic: false,
+        seconds: opts.eval_seconds,
+    };
+    let mut env = Env::new(scene, env_seed);
     let mut policy = super::load_trained(run_dir, None, &env, true, opts.seed)?;
-    let eval = evaluate(&mut env, &mut policy, opts.eval_seconds, |_, _| {})?;
+    let eval = evaluate(&mut env, &mut policy, opts.eval_seconds, |_, _, _| {})?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
@@ -226,6 +236,7 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
+        rerun,
     };
     let summary = write_outputs(&run_dir.join("eval"), &env, &eval, &meta)?;
     print_table(&meta, &summary);

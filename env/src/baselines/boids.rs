@@ -61,8 +61,25 @@ impl Default for BoidsConfig {
 }
 
 impl BoidsConfig {
+    /// Read `path`; every value within [`crate::limits`].
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        read_toml(path)
+        use crate::limits::Param::{Bl, Speed, Weight};
+        let c: Self = read_toml(path)?;
+        crate::limits::params(
+            path,
+            &[
+                ("perception", Bl(c.perception)),
+                ("separation_distance", Bl(c.separation_distance)),
+                ("separation_weight", Weight(c.separation_weight)),
+                ("alignment_weight", Weight(c.alignment_weight)),
+                ("cohesion_weight", Weight(c.cohesion_weight)),
+                ("boundary_distance", Bl(c.boundary_distance)),
+                ("boundary_weight", Weight(c.boundary_weight)),
+                ("obstacle_weight", Weight(c.obstacle_weight)),
+                ("cruise_speed", Speed(c.cruise_speed)),
+            ],
+        )?;
+        Ok(c)
     }
 }
 

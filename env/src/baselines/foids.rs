@@ -85,8 +85,47 @@ impl Default for FoidsConfig {
 }
 
 impl FoidsConfig {
+    /// Read `path`; every value within [`crate::limits`].
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        read_toml(path)
+        use crate::limits::Param::{Bl, Degrees, Share, Speed, Weight};
+        let c: Self = read_toml(path)?;
+        crate::limits::params(
+            path,
+            &[
+                ("separation_range", Bl(c.separation_range)),
+                ("alignment_range", Bl(c.alignment_range)),
+                ("cohesion_range", Bl(c.cohesion_range)),
+                ("separation_weight", Weight(c.separation_weight)),
+                ("alignment_weight", Weight(c.alignment_weight)),
+                ("cohesion_weight", Weight(c.cohesion_weight)),
+                ("boundary_range", Bl(c.boundary_range)),
+                ("regular_boundary_weight", Weight(c.regular_boundary_weight)),
+                ("front_boundary_weight", Weight(c.front_boundary_weight)),
+                ("vertical_multiplier", Weight(c.vertical_multiplier)),
+                ("night_speed[0]", Speed(c.night_speed[0])),
+                ("night_speed[1]", Speed(c.night_speed[1])),
+                ("hover_start", Share(c.hover_start)),
+                ("hover_switch", Share(c.hover_switch)),
+                (
+                    "elevation_threshold_deg",
+                    Degrees(c.elevation_threshold_deg),
+                ),
+                (
+                    "depression_threshold_deg",
+                    Degrees(c.depression_threshold_deg),
+                ),
+                ("hover_activeness", Share(c.hover_activeness)),
+                ("obstacle_weight", Weight(c.obstacle_weight)),
+            ],
+        )?;
+        if c.night_speed[0] > c.night_speed[1] {
+            return Err(ConfigError::invalid(
+                path,
+                "night_speed",
+                "must be [low, high] with low ≤ high",
+            ));
+        }
+        Ok(c)
     }
 }
 

@@ -4,9 +4,37 @@
 use deepfoids_env::config::Range;
 use deepfoids_env::{ConfigDirs, Env, Phase, Scene};
 use glam::Vec3;
+use std::path::{Path, PathBuf};
 
 pub fn dirs() -> ConfigDirs {
     ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"))
+}
+
+/// A copy of the real configs in a temp folder, with `edit` applied to one file.
+pub fn configs_with(name: &str, file: &str, edit: impl FnOnce(String) -> String) -> PathBuf {
+    let root = std::env::temp_dir().join(format!(
+        "deepfoids-config-test-{name}-{}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&root);
+    for sub in ["species", "sites", "scenes", "rewards", "baselines"] {
+        std::fs::create_dir_all(root.join(sub)).unwrap();
+        for e in std::fs::read_dir(dirs().root.join(sub)).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, root.join(sub).join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    let path = root.join(file);
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, edit(text)).unwrap();
+    root
+}
+
+/// The error of loading `scene` from the configs at `root`.
+pub fn load_err(root: &Path, scene: &str) -> String {
+    Scene::load(&ConfigDirs::new(root), scene, Phase::Pretrain)
+        .unwrap_err()
+        .to_string()
 }
 
 /// Scene `id` cut down to `n` fish of body scale exactly 1.0.

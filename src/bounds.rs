@@ -1,0 +1,72 @@
+//! Bounds of command-line values (`deepfoids_env::limits` gives them and says
+//! why): a typo in `--seconds` or `--width` is refused with the bound in the
+//! message instead of running for a week or exhausting memory.
+
+use anyhow::{Result, bail};
+use deepfoids_env::limits::number;
+
+/// `value` of option `flag` must be positive, finite and at most `max` (in `unit`).
+pub fn positive_at_most(flag: &str, value: f64, max: f64, unit: &str) -> Result<()> {
+    if !(value > 0.0 && value.is_finite()) {
+        bail!("{flag} must be a positive number, got {value}");
+    }
+    at_most(flag, value, max, unit)
+}
+
+/// `value` of option `flag` must be at most `max` (in `unit`).
+pub fn at_most(flag: &str, value: f64, max: f64, unit: &str) -> Result<()> {
+    if value > max {
+        bail!(
+            "{flag} {} is above the limit of {} {unit}",
+            number(value),
+            number(max)
+        );
+    }
+    Ok(())
+}
+
+/// `value` of option `flag` must lie in `[min, max]` (in `unit`).
+pub fn count_within(flag: &str, value: u64, [min, max]: [u64; 2], unit: &str) -> Result<()> {
+    if value < min {
+        bail!("{flag} {value} is below the minimum of {min}");
+    }
+    if value > max {
+        bail!("{flag} {value} is above the limit of {max} {unit}");
+    }
+    Ok(())
+}
+
+/// A simulated duration of one command: `(0, MAX_SECONDS]`.
+pub fn seconds(flag: &str, value: f64) -> Result<()> {
+    positive_at_most(
+        flag,
+        value,
+        deepfoids_env::limits::MAX_SECONDS,
+        "s (one simulated day)",
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_name_the_option_value_and_bound() {
+        let e = seconds("--seconds", 1e9).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "--seconds 1e9 is above the limit of 86400 s (one simulated day)"
+        );
+        let e = seconds("--seconds", f64::NAN).unwrap_err().to_string();
+        assert_eq!(e, "--seconds must be a positive number, got NaN");
+        assert!(seconds("--seconds", 86_400.0).is_ok());
+        let e = count_within("--seeds", 0, [1, 1000], "seeds")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "--seeds 0 is below the minimum of 1");
+        let e = count_within("--width", 100_000, [16, 8192], "px")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "--width 100000 is above the limit of 8192 px");
+    }
+}

@@ -1,0 +1,378 @@
+//! `deepfoids replay`: watch a school. Writes one self-contained HTML file
+//! (the viewer of `deepfoids_replay`, three.js embedded) and, on request, a GIF
+//! of the top and side views.
+//!
+//! Where the school comes from:
+//! - `--scene S --policy P`: simulated now, as `eval` would (same loop, same P/M).
+//! - `--from <simulate folder>`: its `trajectories.csv`, in the cage and with
+//!   the fish of the scene and seed in its `simulate.json` (or `--scene`/`--seed`).
+//!   The CSV holds no chases or reward terms; the viewer says so.
+//! - `--from <eval folder>`: eval keeps no per-fish trajectories, so the run is
+//!   simulated again from the scene, policy and seed in its `summary.json`
+//!   (seeded runs are deterministic), and every tick's P and M must equal its
+//!   `metrics.csv` — a changed policy or code is an error, not a different film.
+
+use super::{load_scene, make_policy};
+use crate::cli::{PolicyArgs, SceneArgs, parse_phase};
+use crate::clip::{GifView, write_gif};
+use crate::io::write_atomic;
+use crate::report::{Evaluation, RunArgs, evaluate};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use deepfoids_env::limits::MAX_FPS;
+use deepfoids_env::memory;
+use deepfoids_env::{ConfigDirs, Env, Phase};
+use deepfoids_replay::{EnvRecorder, Info, PageSize, Recording, from_trajectories, page};
+use std::path::{Path, PathBuf};
+
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    /// Scene id (see `deepfoids scenes`) or path to a scene TOML file; with --from, only for a
+    /// simulate folder without simulate.json
+    #[arg(long, value_name = "ID|PATH")]
+    pub scene: Option<String>,
+    /// Random seed (with --from: only for a simulate folder without simulate.json)
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Reward weights of this phase (the reward terms shown)
+    #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
+    pub phase: Phase,
+    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    #[arg(long, default_value = "foids")]
+    pub policy: String,
+    #[command(flatten)]
+    pub policy_args: PolicyArgs,
+    /// Simulated seconds
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Replay a saved run: a `simulate` output folder (its trajectories.csv) or an `eval` output
+    /// folder (simulated again from its summary.json and checked against its metrics.csv)
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["seconds", "policy"])]
+    pub from: Option<PathBuf>,
+    /// Frames per simulated second stored (rounded to whole ticks; the viewer interpolates)
+    #[arg(long, default_value_t = 5.0)]
+    pub fps: f64,
+    /// Output HTML file
+    #[arg(long, default_value = "replay.html", value_name = "HTML")]
+    pub out: PathBuf,
+    /// Also write an animated GIF (top and side views) for papers, slides and issues
+    #[arg(long, value_name = "GIF")]
+    pub gif: Option<PathBuf>,
+    /// Views in the GIF: top, side, or both side by side
+    #[arg(long, value_enum, default_value = "both")]
+    pub gif_view: GifView,
+    /// Width of each GIF view in pixels (the cage fills it)
+    #[arg(long, default_value_t = 360, value_name = "PX")]
+    pub gif_size: u32,
+    /// GIF playback speed relative to real time
+    #[arg(long, default_value_t = 1.0, value_name = "X")]
+    pub gif_speed: f64,
+}
+
+pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
+    crate::bounds::at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
+    let rec = match &args.from {
+        Some(dir) => from_folder(dirs, dir, args)?,
+        None => {
+            let Some(scene) = &args.scene else {
+                bail!(
+                    "give --scene (and --policy) to simulate a school, or --from <simulate or eval folder> to replay one"
+                );
+            };
+            crate::bounds::seconds("--seconds", args.seconds)?;
+            let sa = SceneArgs {
+                scene: scene.clone(),
+                seed: args.seed.unwrap_or(0),
+                phase: args.phase,
+            };
+            let run = RunArgs::new(&sa, &args.policy, &args.policy_args, args.seconds);
+            simulate(dirs, &run, args.fps, "simulated by deepfoids replay")?.0
+        }
+    };
+    let size = write_page(&args.out, &rec)?;
+    println!("{}", describe(&args.out, &rec, &size));
+    warn_if_large(&size);
+    if let Some(gif) = &args.gif {
+        let size = write_gif(gif, &rec, args.gif_view, args.gif_size, args.gif_speed)?;
+        println!(
+            "wrote {}: {} frames, {}",
+            gif.display(),
+            rec.frames(),
+            bytes(size)
+        );
+    }
+    Ok(())
+}
+
+/// Write `rec` as a replay page at `path` (atomically).
+pub fn write_page(path: &Path, rec: &Recording) -> Result<PageSize> {
+    let (html, size) = page(rec);
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create {}", parent.display()))?;
+    }
+    write_atomic(path, html.as_bytes())?;
+    Ok(size)
+}
+
+/// Peak bytes per fish and frame while a page is built: the recording (27 B
+/// with the reward terms), its encoded copy (27), the gzip stream (at most
+/// 27), its base64 text (36) and the page that holds it (36) — 153, rounded up.
+const PAGE_BYTES_PER_FISH_FRAME: u64 = 160;
+
+/// A CSV row of `trajectories.csv` is at least this long (bytes).
+const MIN_CSV_ROW: u64 = 60;
+
+/// Refuse a replay whose page would not fit into memory (`deepfoids_env::memory`).
+pub fn check_recording(env: &Env, seconds: f64, fps: f64) -> Result<()> {
+    let stride = deepfoids_replay::stride(fps, env.tick_seconds())?;
+    let frames = (seconds / (stride as f64 * env.tick_seconds())).floor() as u64 + 1;
+    let fish = env.world().len() as u64;
+    deepfoids_env::memory::check(
+        &format!("a replay of {fish} fish × {frames} frames"),
+        frames * fish * PAGE_BYTES_PER_FISH_FRAME,
+        "lower --seconds or --fps",
+    )?;
+    Ok(())
+}
+
+/// One line on what was written.
+pub fn describe(path: &Path, rec: &Recording, size: &PageSize) -> String {
+    let span = rec.times.last().copied().unwrap_or(0.0) - rec.times[0];
+    format!(
+        "wrote {}: {} frames × {} fish over {:.1} s ({:.2} frames/s); {} (recording {} gzipped from {}, three.js {})",
+        path.display(),
+        rec.frames(),
+        rec.fish,
+        span,
+        (rec.frames() - 1) as f64 / span.max(1e-9) as f64,
+        bytes(size.total),
+        bytes(size.data_gzip),
+        bytes(size.data_raw),
+        bytes(size.library),
+    )
+}
+
+/// Browsers load pages of a few hundred MB slowly or not at all.
+pub const LARGE_PAGE: usize = 200_000_000;
+
+/// Say so when a page is too large to open comfortably.
+pub fn warn_if_large(size: &PageSize) {
+    if size.total > LARGE_PAGE {
+        eprintln!(
+            "warning: a {} page loads slowly and may not open at all; lower --fps or --seconds (size grows with fish × frames, about 13 bytes each before gzip, 27 with reward terms)",
+            bytes(size.total)
+        );
+    }
+}
+
+/// A byte count for people: `5.9 MB`, `48 kB`.
+pub fn bytes(n: usize) -> String {
+    if n >= 1_000_000 {
+        format!("{:.1} MB", n as f64 / 1e6)
+    } else {
+        format!("{:.0} kB", n as f64 / 1e3)
+    }
+}
+
+/// The viewer's title block for `env`'s scene driven by `policy`.
+pub fn info(env: &Env, policy: &str, source: &str, notes: Vec<String>) -> Info {
+    let s = env.scene();
+    Info {
+        title: format!("{} · {} · seed {}", s.id, policy, env.seed()),
+        scene: s.id.clone(),
+        description: s.description.clone(),
+        policy: policy.to_string(),
+        seed: env.seed(),
+        phase: s.phase.as_str().to_string(),
+        source: source.to_string(),
+        notes,
+    }
+}
+
+/// Simulate `run` as `eval` does, recording `fps` frames per second.
+fn simulate(
+    dirs: &ConfigDirs,
+    run: &RunArgs,
+    fps: f64,
+    source: &str,
+) -> Result<(Recording, Evaluation)> {
+    let (sa, opts) = run.options()?;
+    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
+    let mut env = Env::new(scene, sa.seed);
+    check_recording(&env, run.seconds, fps)?;
+    let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts)?;
+    let mut recorder = EnvRecorder::new(&env, info(&env, &policy.name(), source, vec![]), fps)?;
+    let eval = evaluate(&mut env, policy.as_mut(), run.seconds, |env, _, _| {
+        recorder.observe(env)
+    })?;
+    let rec = recorder.finish(curves(&eval));
+    Ok((rec, eval))
+}
+
+/// `(t, P, M)` of every sample of an evaluation.
+pub fn curves(eval: &Evaluation) -> impl Iterator<Item = (f64, f32, f32)> + '_ {
+    eval.recorder.samples.iter().map(|s| (s.t, s.p, s.m))
+}
+
+fn from_folder(dirs: &ConfigDirs, dir: &Path, args: &ReplayArgs) -> Result<Recording> {
+    if !dir.is_dir() {
+        bail!("--from {}: no such folder", dir.display());
+    }
+    let csv = dir.join("trajectories.csv");
+    let summary = dir.join("summary.json");
+    if csv.is_file() {
+        from_simulate(dirs, dir, &csv, args)
+    } else if summary.is_file() {
+        from_eval(dirs, dir, &summary, args.fps)
+    } else {
+        bail!(
+            "--from {}: neither trajectories.csv (written by simulate) nor summary.json (written by eval) is there",
+            dir.display()
+        )
+    }
+}
+
+fn from_simulate(
+    dirs: &ConfigDirs,
+    dir: &Path,
+    csv: &Path,
+    args: &ReplayArgs,
+) -> Result<Recording> {
+    let meta_path = dir.join("simulate.json");
+    let (sa, policy) = if meta_path.is_file() {
+        let run: RunArgs = read_json(&meta_path)?;
+        if args.scene.is_some() || args.seed.is_some() {
+            bail!(
+                "--scene and --seed come from {} here; drop them",
+                meta_path.display()
+            );
+        }
+        (run.options()?.0, run.policy)
+    } else {
+        let Some(scene) = &args.scene else {
+            bail!(
+                "{} is missing (simulate writes it since replay exists): give --scene and --seed of the run that wrote {}",
+                meta_path.display(),
+                csv.display()
+            );
+        };
+        let sa = SceneArgs {
+            scene: scene.clone(),
+            seed: args.seed.unwrap_or(0),
+            phase: args.phase,
+        };
+        (sa, "unknown policy".to_string())
+    };
+    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
+    let env = Env::new(scene, sa.seed);
+    let csv_bytes = std::fs::metadata(csv)
+        .with_context(|| format!("cannot read {}", csv.display()))?
+        .len();
+    deepfoids_env::memory::check(
+        &format!("replaying {} ({})", csv.display(), memory::human(csv_bytes)),
+        csv_bytes + csv_bytes / MIN_CSV_ROW * PAGE_BYTES_PER_FISH_FRAME,
+        "replay a shorter simulation",
+    )?;
+    let text =
+        std::fs::read_to_string(csv).with_context(|| format!("cannot read {}", csv.display()))?;
+    let source = format!("replayed from {}", csv.display());
+    let notes = vec!["simulate's CSV holds no chases or reward terms".to_string()];
+    let info = info(&env, &policy, &source, notes);
+    Ok(from_trajectories(
+        &csv.display().to_string(),
+        &text,
+        &env,
+        info,
+        args.fps,
+    )?)
+}
+
+fn from_eval(dirs: &ConfigDirs, dir: &Path, summary: &Path, fps: f64) -> Result<Recording> {
+    #[derive(serde::Deserialize)]
+    struct Summary {
+        rerun: Option<RunArgs>,
+    }
+    let s: Summary = read_json(summary)?;
+    let Some(run) = s.rerun else {
+        bail!(
+            "{} does not record how to run the evaluation again (written before replay existed): replay it with --scene, --seed and --policy",
+            summary.display()
+        );
+    };
+    let metrics = dir.join("metrics.csv");
+    let saved = read_pm(&metrics)?;
+    let source = format!(
+        "simulated again from {} (P and M match its metrics.csv)",
+        summary.display()
+    );
+    let (rec, eval) = simulate(dirs, &run, fps, &source)
+        .with_context(|| format!("re-running the evaluation in {}", dir.display()))?;
+    check_pm(&metrics, &saved, &eval)?;
+    Ok(rec)
+}
+
+/// `(t, P, M)` as `metrics.csv` prints them.
+fn read_pm(path: &Path) -> Result<Vec<[String; 3]>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or_default();
+    if !header.starts_with("t,P,M,") {
+        bail!(
+            "{}: header `{header}` does not start with t,P,M",
+            path.display()
+        );
+    }
+    lines
+        .enumerate()
+        .map(|(k, l)| {
+            let mut c = l.split(',');
+            match (c.next(), c.next(), c.next()) {
+                (Some(t), Some(p), Some(m)) => Ok([t.into(), p.into(), m.into()]),
+                _ => bail!("{}: line {}: fewer than 3 columns", path.display(), k + 2),
+            }
+        })
+        .collect()
+}
+
+/// Every tick's P and M of the re-run must print as the saved ones.
+fn check_pm(path: &Path, saved: &[[String; 3]], eval: &Evaluation) -> Result<()> {
+    let samples = &eval.recorder.samples;
+    if samples.len() != saved.len() {
+        bail!(
+            "the re-run has {} samples but {} has {}: the evaluation cannot be reproduced",
+            samples.len(),
+            path.display(),
+            saved.len()
+        );
+    }
+    for (s, row) in samples.iter().zip(saved) {
+        let now = [
+            format!("{:.3}", s.t),
+            format!("{:.5}", s.p),
+            format!("{:.5}", s.m),
+        ];
+        if &now != row {
+            bail!(
+                "the re-run does not reproduce {} at t = {} s: (t, P, M) = ({}, {}, {}) now, ({}, {}, {}) saved — the policy, scene or code changed since the evaluation",
+                path.display(),
+                row[0],
+                now[0],
+                now[1],
+                now[2],
+                row[0],
+                row[1],
+                row[2]
+            );
+        }
+    }
+    Ok(())
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("{}: not the expected JSON", path.display()))
+}

@@ -1,0 +1,418 @@
+//! Issue 13 through the binary: configs and options that could take the
+//! machine down are refused with their bound, a scene too large for the
+//! machine's memory is refused before it is allocated, and an output folder
+//! is written by one process at a time.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn command(args: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_deepfoids"));
+    c.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+fn deepfoids(args: &[&str]) -> Output {
+    command(args).output().expect("the binary runs")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("deepfoids-robust-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// A copy of `configs/` with `from` replaced by `to` in the seabream default scene.
+fn configs_with(name: &str, from: &str, to: &str) -> PathBuf {
+    let root = temp(name);
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+    for sub in ["species", "sites", "scenes", "rewards", "baselines"] {
+        std::fs::create_dir_all(root.join(sub)).unwrap();
+        for e in std::fs::read_dir(src.join(sub)).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, root.join(sub).join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    let scene = root.join("scenes/seabream_default.toml");
+    let t = std::fs::read_to_string(&scene).unwrap();
+    assert!(t.contains(from));
+    std::fs::write(&scene, t.replace(from, to)).unwrap();
+    root
+}
+
+/// `deepfoids [--configs ROOT] <cmd> --scene seabream_default --seconds S --out OUT`.
+fn on_seabream(configs: Option<&Path>, cmd: &str, seconds: &str, out: &Path) -> Command {
+    let mut args = vec![];
+    if let Some(root) = configs {
+        args.extend(["--configs", root.to_str().unwrap()]);
+    }
+    args.extend([cmd, "--scene", "seabream_default", "--seconds", seconds]);
+    args.extend(["--out", out.to_str().unwrap()]);
+    command(&args)
+}
+
+/// A failing run whose one-line error contains `want`.
+fn assert_refused(o: &Output, want: &str) {
+    let t = text(o);
+    assert!(!o.status.success(), "should fail: {t}");
+    assert!(t.contains(want), "expected `{want}` in:\n{t}");
+    assert!(
+        !t.contains("panicked") && !t.contains("memory allocation"),
+        "{t}"
+    );
+}
+
+#[test]
+fn a_typo_in_a_scene_is_refused_with_its_bound() {
+    // Once "memory allocation of 4896000000000 bytes failed" and a backtrace.
+    let root = configs_with("count", "count = 10", "count = 100000000");
+    let out = temp("count-out");
+    let o = on_seabream(Some(&root), "simulate", "1", &out)
+        .output()
+        .unwrap();
+    assert_refused(
+        &o,
+        "scenes/seabream_default.toml: group[0].count = 100000000 is above the limit of 200000 fish",
+    );
+    assert_eq!(text(&o).lines().count(), 1, "{}", text(&o));
+    // Once accepted, with a mean depth of 5·10²⁹ m.
+    let root = configs_with("edge", "edge = 3.0", "edge = 1e30");
+    let o = on_seabream(Some(&root), "eval", "1", &out)
+        .output()
+        .unwrap();
+    assert_refused(&o, "cage.edge = 1e30 is above the limit of 1000 m");
+    assert!(!out.exists(), "nothing is written");
+}
+
+#[test]
+fn a_scene_too_large_for_the_memory_is_refused_before_it_is_allocated() {
+    // 1,000 seabream need about 50 MB; say the machine has 20 MiB.
+    let root = configs_with("memory", "count = 10", "count = 1000");
+    let out = temp("memory-out");
+    let o = on_seabream(Some(&root), "simulate", "0.2", &out)
+        .env("DEEPFOIDS_MEMORY_AVAILABLE", "20M")
+        .output()
+        .unwrap();
+    assert_refused(
+        &o,
+        "the environment of scene seabream_default (1000 fish) needs about 50.5 MB, but this machine has 21.0 MB available (set by DEEPFOIDS_MEMORY_AVAILABLE)",
+    );
+    assert!(text(&o).contains("use fewer fish"), "{}", text(&o));
+    // With the machine's own figure it runs.
+    let o = on_seabream(Some(&root), "simulate", "0.2", &out)
+        .env_remove("DEEPFOIDS_MEMORY_AVAILABLE")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    // A replay page is checked too: a day of frames of 10 fish in 10 MiB.
+    let o = command(&[
+        "replay",
+        "--scene",
+        "seabream_default",
+        "--seconds",
+        "86400",
+        "--out",
+        out.join("r.html").to_str().unwrap(),
+    ])
+    .env("DEEPFOIDS_MEMORY_AVAILABLE", "10M")
+    .output()
+    .unwrap();
+    assert_refused(
+        &o,
+        "a replay of 10 fish × 432001 frames needs about 691.2 MB, but this machine has 10.5 MB available",
+    );
+}
+
+#[test]
+fn command_line_sizes_and_durations_have_bounds() {
+    let out = temp("flags");
+    let out = out.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &[
+                "simulate",
+                "--scene",
+                "seabream_default",
+                "--seconds",
+                "1e9",
+                "--out",
+                out,
+            ],
+            "--seconds 1e9 is above the limit of 86400 s (one simulated day)",
+        ),
+        (
+            &[
+                "eval",
+                "--scene",
+                "seabream_default",
+                "--seconds",
+                "1e15",
+                "--out",
+                out,
+            ],
+            "--seconds 1e15 is above the limit of 86400 s",
+        ),
+        (
+            &[
+                "eval",
+                "--scene",
+                "seabream_default",
+                "--replay",
+                "--replay-fps",
+                "1e6",
+                "--out",
+                out,
+            ],
+            "--replay-fps 1000000 is above the limit of 1000 frames/s",
+        ),
+        (
+            &["replay", "--scene", "seabream_default", "--seconds", "1e7"],
+            "--seconds 1e7 is above the limit of 86400 s",
+        ),
+        (
+            &["replay", "--scene", "seabream_default", "--fps", "1e6"],
+            "--fps 1000000 is above the limit of 1000 frames/s",
+        ),
+        (
+            &[
+                "compare",
+                "runs/a",
+                "runs/b",
+                "--seconds",
+                "1e9",
+                "--out",
+                out,
+            ],
+            "--seconds 1e9 is above the limit of 86400 s",
+        ),
+        (
+            &[
+                "compare", "runs/a", "runs/b", "--seeds", "1000000", "--out", out,
+            ],
+            "--seeds 1000000 is above the limit of 1000 seeds",
+        ),
+        (
+            &[
+                "sensor-view",
+                "--scene",
+                "seabream_default",
+                "--step",
+                "100000000000",
+            ],
+            "--step 100000000000 is above the limit of 1000000 ticks",
+        ),
+        (
+            &[
+                "render",
+                "--scene",
+                "seabream_default",
+                "--frames",
+                "10",
+                "--width",
+                "100000",
+                "--out",
+                out,
+            ],
+            "--width 100000 is above the limit of 8192 px",
+        ),
+        (
+            &[
+                "render",
+                "--scene",
+                "seabream_default",
+                "--frames",
+                "2000000",
+                "--out",
+                out,
+            ],
+            "--frames 2000000 is above the limit of 1000000 frames",
+        ),
+        (
+            &[
+                "render",
+                "--scene",
+                "seabream_default",
+                "--frames",
+                "10",
+                "--warmup",
+                "1e9",
+                "--out",
+                out,
+            ],
+            "--warmup 1e9 is above the limit of 86400 s",
+        ),
+        (
+            &[
+                "render",
+                "--scene",
+                "seabream_default",
+                "--frames",
+                "10",
+                "--fps",
+                "1e5",
+                "--out",
+                out,
+            ],
+            "--fps 100000 is above the limit of 1000 frames/s",
+        ),
+    ];
+    for (args, want) in cases {
+        assert_refused(&deepfoids(args), want);
+    }
+    assert!(!Path::new(out).exists(), "nothing is written");
+}
+
+/// `--threads 0` once meant one thread, silently; it is refused, and so are
+/// absurd counts.
+#[test]
+fn zero_threads_are_refused() {
+    let o = deepfoids(&["--threads", "0", "scenes"]);
+    assert_refused(
+        &o,
+        "invalid value '0' for '--threads <N>': 0 threads cannot run anything; give 1 or more, or leave --threads out for one thread per core",
+    );
+    assert_refused(
+        &deepfoids(&["--threads", "100000", "scenes"]),
+        "100000 is above the limit of 1024 threads",
+    );
+    let o = deepfoids(&["--threads", "1", "scenes"]);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+/// A child process killed when the test ends, even by a failed assertion.
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The lines a child writes to stderr, until one contains `want` (or 120 s pass).
+fn wait_for_stderr(child: &mut Child, want: &str) -> String {
+    let stderr = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut seen = String::new();
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(120) {
+        match rx.recv_timeout(Duration::from_millis(200)) {
+            Ok(line) => {
+                seen.push_str(&line);
+                seen.push('\n');
+                if line.contains(want) {
+                    return seen;
+                }
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(_) => break,
+        }
+    }
+    seen
+}
+
+/// Two renders into one folder: the second is refused while the first runs,
+/// naming its PID; after `kill -9` of the first, the next one takes the
+/// stale lock over with a note. Any other command writing the folder is
+/// refused too.
+#[test]
+fn one_process_at_a_time_writes_a_render_folder() {
+    let out = temp("lock");
+    let lock_file = out.with_file_name(format!(
+        ".{}.lock",
+        out.file_name().unwrap().to_string_lossy()
+    ));
+    let _ = std::fs::remove_file(&lock_file);
+    let args = [
+        "render",
+        "--scene",
+        "seabream_default",
+        "--frames",
+        "100000",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--warmup",
+        "0",
+        "--format",
+        "png",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let mut first = Killed(
+        command(&args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let start = Instant::now();
+    while !out.join("scene.json").exists() && start.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(out.join("scene.json").exists(), "the first render started");
+    let record = std::fs::read_to_string(&lock_file).unwrap();
+    assert!(
+        record.contains(&format!("pid = {}", first.0.id())),
+        "{record}"
+    );
+
+    let second = deepfoids(&args);
+    let held = format!("is in use by PID {} on host", first.0.id());
+    assert_refused(&second, &held);
+    assert!(text(&second).contains("wait for it to finish or stop it"));
+    let sim = on_seabream(None, "simulate", "0.2", &out).output().unwrap();
+    assert_refused(&sim, &held);
+    assert!(!out.join("trajectories.csv").exists());
+
+    first.0.kill().unwrap(); // SIGKILL: no destructor runs, the lock file stays
+    first.0.wait().unwrap();
+    assert!(lock_file.exists(), "a killed process leaves its lock file");
+    let mut third = Killed(
+        command(&args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let said = wait_for_stderr(&mut third.0, "taking the lock over");
+    drop(third);
+    assert!(
+        said.contains(&format!("was locked by PID {} on host", first.0.id()))
+            && said.contains("which ended without releasing it; taking the lock over"),
+        "{said}"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_file(&lock_file);
+}
+
+/// A finished command releases its folder: the lock file is gone.
+#[test]
+fn a_finished_command_leaves_no_lock() {
+    let out = temp("released");
+    let o = on_seabream(None, "simulate", "0.2", &out).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let parent = out.parent().unwrap();
+    let name = format!(".{}.lock", out.file_name().unwrap().to_string_lossy());
+    assert!(!parent.join(name).exists());
+    let _ = std::fs::remove_dir_all(&out);
+}
