@@ -256,9 +256,43 @@ struct Behaviour<L> {
     stats: EpisodeStats,
 }
 
-/// The run folder of a training run (the place for issue 13's lock).
+/// The run folder of a training run. The caller holds its lock
+/// (`deepfoids_env::lock::DirLock`, taken by the `train` and `pipeline`
+/// commands for the life of the process) and has checked `--init-from`
+/// ([`open_sources`]) before creating it.
 pub fn open_run(run_dir: &Path) -> Result<()> {
     std::fs::create_dir_all(run_dir).map_err(LearnError::io(run_dir))
+}
+
+/// The policies of `init_from` — each of `trainer`'s algorithm, this build's
+/// layout and the configured architecture — with a source for every
+/// behaviour of `scene`. Callers check this before they create a run folder,
+/// so a wrong `--init-from` leaves nothing behind (issue 13 item 5).
+pub fn open_sources<T: Trainer>(
+    trainer: &T,
+    init_from: &[PathBuf],
+    scene: &Scene,
+) -> Result<Vec<PolicySource>> {
+    let (hidden, layers) = trainer.architecture();
+    let sources = init_from
+        .iter()
+        .map(|run| {
+            let src = PolicySource::open(
+                run,
+                trainer.algorithm(),
+                "--init-from transfers between runs of the same algorithm",
+            )?;
+            src.state
+                .check_architecture(&src.dir, hidden, layers, trainer.config_name())?;
+            Ok(src)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    if !sources.is_empty() {
+        for b in &scene.behaviours {
+            find_source(&sources, &b.name, &b.species.name)?;
+        }
+    }
+    Ok(sources)
 }
 
 /// Train `trainer`'s algorithm on a scene. See the module documentation.
@@ -291,19 +325,7 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
         None
     };
     let sources: Vec<PolicySource> = if resumed.is_none() {
-        args.init_from
-            .iter()
-            .map(|run| {
-                let src = PolicySource::open(
-                    run,
-                    algo,
-                    "--init-from transfers between runs of the same algorithm",
-                )?;
-                src.state
-                    .check_architecture(&src.dir, hidden, layers, trainer.config_name())?;
-                Ok(src)
-            })
-            .collect::<Result<_>>()?
+        open_sources(trainer, &args.init_from, &args.scene)?
     } else {
         vec![]
     };

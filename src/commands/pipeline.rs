@@ -78,7 +78,18 @@ pub fn run(dirs: &ConfigDirs, args: &PipelineArgs) -> Result<()> {
             opts.seed
         )
     });
+    for (flag, steps) in [
+        ("--pretrain-steps", args.pretrain_steps),
+        ("--transfer-steps", args.transfer_steps),
+    ] {
+        if let Some(s) = steps {
+            crate::bounds::train_steps(flag, s)?;
+        }
+    }
     let root = opts.runs_dir.join(&id);
+    // One process per pipeline folder for the life of this one (issue 13
+    // item 2); each stage's run folder is locked as well while it trains.
+    let _lock = crate::io::lock_dir(&root)?;
     std::fs::create_dir_all(&root)?;
     eprintln!(
         "pipeline {id}: pretrain in {}, then transfer into {}",
@@ -194,6 +205,7 @@ fn stage(
 ) -> Result<Row> {
     let phase = scene.phase;
     let scene_id = scene.id.clone();
+    let _lock = crate::io::lock_dir(dir)?;
     let finished = dir.join("final").join("state.json").is_file();
     let (summary, train_reward, agent_steps) = if finished {
         eprintln!("{run_id}: finished before, reusing it");
