@@ -29,11 +29,16 @@
 //!
 //! # Checkpoints and resume
 //! A checkpoint is written at the first decision past each `checkpoint_every`
-//! agent steps (all behaviours together), atomically. A resumed run continues
+//! agent steps (all behaviours together), atomically. It holds every agent
+//! step counted ([`Learner::before_checkpoint`]: PPO's open trajectories go
+//! into its saved buffer, SAC's replay buffer is saved), so a run killed
+//! after a checkpoint and resumed makes the updates and reaches the final
+//! step of the run never stopped (issue 13 item 4). A resumed run continues
 //! with the weights, optimisers, counters and the algorithm's saved state,
-//! from a reset environment reseeded with `seed + resets`. A lock on the run
-//! folder and an exact resume (issue 13) belong in [`open_run`] and in the
-//! algorithms' `save`/`resume_learner`.
+//! from a reset environment reseeded with `seed + resets` (so its later
+//! experience, and its weights, differ from the uninterrupted run's); its
+//! logs are first cut back to the checkpoint ([`Logger::open`]). The caller
+//! holds the run folder's lock ([`open_run`]).
 
 use crate::backend::Backend;
 use crate::checkpoint::{
@@ -192,6 +197,15 @@ pub trait Learner {
 
     /// Gradient updates so far.
     fn updates(&self) -> u64;
+
+    /// Just before a checkpoint is saved: put what is in flight where the
+    /// checkpoint keeps it (PPO closes its open trajectories into the
+    /// buffer), so that it holds every agent step counted. The run goes on
+    /// from this state whether or not it is killed later, so a resumed run
+    /// continues as the uninterrupted one (issue 13 item 4).
+    fn before_checkpoint(&mut self) -> Result<()> {
+        Ok(())
+    }
 
     /// Save into `dir` under behaviour `name`: the weights, and for a
     /// checkpoint also the optimisers and the algorithm's state.
@@ -382,7 +396,17 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
         });
     }
     let names: Vec<String> = behaviours.iter().map(|b| b.name.clone()).collect();
-    let mut logger = Logger::open(&run_dir, &names)?;
+    let resumed_at: Option<Vec<u64>> = resumed
+        .as_ref()
+        .map(|_| behaviours.iter().map(|b| b.agent_steps).collect());
+    if let Some((dir, st)) = &resumed {
+        eprintln!(
+            "resumed from step {} (checkpoint {})",
+            st.agent_steps,
+            dir.display()
+        );
+    }
+    let mut logger = Logger::open(&run_dir, &names, resumed_at.as_deref())?;
     let mut state = resumed.map(|s| s.1).unwrap_or_else(|| RunState {
         algo,
         layout: crate::body::ENCODER_LAYOUT,
@@ -503,6 +527,9 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
             state.ticks = tick;
             state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
             let dir = checkpoint::checkpoint_dir(&run_dir, state.agent_steps);
+            for b in &mut behaviours {
+                b.learner.before_checkpoint()?;
+            }
             save_all(&dir, &behaviours, &mut state, true, false)?;
             checkpoint::prune(&run_dir, settings.keep_checkpoints);
             logger.flush()?;
