@@ -476,7 +476,15 @@ fn a_killed_run_resumes_as_the_run_never_stopped() {
             ..small_config()
         };
         let whole = temp(&format!("whole-{rollout:?}"));
-        run(&whole, "seabream_default", cfg.clone(), 2700, 4, false, vec![]);
+        run(
+            &whole,
+            "seabream_default",
+            cfg.clone(),
+            2700,
+            4,
+            false,
+            vec![],
+        );
         let never_stopped = RunState::load(&whole.join("final")).unwrap();
         let killed = temp(&format!("killed-{rollout:?}"));
         copy_dir(&whole, &killed);
@@ -486,11 +494,22 @@ fn a_killed_run_resumes_as_the_run_never_stopped() {
             before.iter().any(|e| e.1 > 1400),
             "the killed run logged after its checkpoint"
         );
-        run(&killed, "seabream_default", cfg.clone(), 2700, 4, true, vec![]);
+        run(
+            &killed,
+            "seabream_default",
+            cfg.clone(),
+            2700,
+            4,
+            true,
+            vec![],
+        );
         let resumed = RunState::load(&killed.join("final")).unwrap();
         assert_eq!(
             (resumed.agent_steps, resumed.behaviours[0].updates),
-            (never_stopped.agent_steps, never_stopped.behaviours[0].updates),
+            (
+                never_stopped.agent_steps,
+                never_stopped.behaviours[0].updates
+            ),
             "{rollout:?}: final step and updates"
         );
         assert_eq!(resumed.agent_steps, 2700);
