@@ -555,6 +555,17 @@ fn one_process_at_a_time_trains_a_run() {
     assert!(!dir.join("marker").exists(), "--force replaced the folder");
     assert!(dir.join("final/state.json").is_file());
     assert!(!runs.join(".r.lock").exists(), "released at exit");
+    // A resume says where it continues from (checkpoints every 100 steps).
+    let resume = train_cmd(&configs, &runs, "r", "400", &["--resume"])
+        .output()
+        .unwrap();
+    assert!(resume.status.success(), "{}", text(&resume));
+    assert!(
+        text(&resume).contains("resumed from step 300 (checkpoint ")
+            && text(&resume).contains("step-0000000300)"),
+        "{}",
+        text(&resume)
+    );
     let _ = std::fs::remove_dir_all(&runs);
     let _ = std::fs::remove_dir_all(&configs);
 }
@@ -629,4 +640,39 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
     assert!(o.status.success(), "{}", text(&o));
     let _ = std::fs::remove_dir_all(&runs);
     let _ = std::fs::remove_dir_all(&configs);
+}
+
+/// A pipeline folder in use (here: locked by this test) is refused, naming
+/// the holder, before any stage starts.
+#[test]
+fn a_pipeline_in_use_is_refused() {
+    let runs = temp("pipeline-lock");
+    let lock = deepfoids_env::lock::DirLock::acquire(&runs.join("p")).unwrap();
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "seabream",
+        "--pretrain-steps",
+        "100",
+        "--transfer-steps",
+        "100",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "p",
+    ]);
+    assert_refused(&o, &format!("is in use by PID {}", std::process::id()));
+    assert!(!runs.join("p").exists(), "no stage started");
+    drop(lock);
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "seabream",
+        "--pretrain-steps",
+        "0",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+    ]);
+    assert_refused(&o, "--pretrain-steps 0 would train nothing");
+    let _ = std::fs::remove_dir_all(&runs);
 }

@@ -344,6 +344,14 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
         vec![]
     };
 
+    if let Some((dir, st)) = &resumed {
+        eprintln!(
+            "resumed from step {} (checkpoint {})",
+            st.agent_steps,
+            dir.display()
+        );
+    }
+
     // ---- Environment -------------------------------------------------------------
     let resets = resumed.as_ref().map_or(0, |s| s.1.resets + 1);
     let mut env = Env::new(args.scene.clone(), args.seed.wrapping_add(resets));
@@ -399,13 +407,6 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
     let resumed_at: Option<Vec<u64>> = resumed
         .as_ref()
         .map(|_| behaviours.iter().map(|b| b.agent_steps).collect());
-    if let Some((dir, st)) = &resumed {
-        eprintln!(
-            "resumed from step {} (checkpoint {})",
-            st.agent_steps,
-            dir.display()
-        );
-    }
     let mut logger = Logger::open(&run_dir, &names, resumed_at.as_deref())?;
     let mut state = resumed.map(|s| s.1).unwrap_or_else(|| RunState {
         algo,
