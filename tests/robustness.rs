@@ -582,21 +582,15 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
     assert_refused(&o, "--steps 0 would train nothing");
     assert!(!runs.join("zero").exists());
 
-    let missing = runs.join("no-such-run");
-    let o = train_cmd(
-        &configs,
-        &runs,
-        "t",
-        "300",
-        &[
-            "--phase",
-            "transfer",
-            "--init-from",
-            missing.to_str().unwrap(),
-        ],
-    )
-    .output()
-    .unwrap();
+    // `train --run-id t --phase transfer --init-from <from> [--algo <algo>]`.
+    let transfer = |from: &Path, algo: &str| {
+        let from = from.to_str().unwrap();
+        let args = ["--phase", "transfer", "--init-from", from, "--algo", algo];
+        train_cmd(&configs, &runs, "t", "300", &args)
+            .output()
+            .unwrap()
+    };
+    let o = transfer(&runs.join("no-such-run"), "ppo");
     assert_refused(&o, "no-such-run");
     assert!(!runs.join("t").exists(), "no stub folder");
     // A run of the other algorithm: refused by name, nothing created either.
@@ -604,39 +598,11 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", text(&o));
-    let o = train_cmd(
-        &configs,
-        &runs,
-        "t",
-        "300",
-        &[
-            "--algo",
-            "sac",
-            "--phase",
-            "transfer",
-            "--init-from",
-            runs.join("src").to_str().unwrap(),
-        ],
-    )
-    .output()
-    .unwrap();
+    let o = transfer(&runs.join("src"), "sac");
     assert_refused(&o, "ppo");
     assert!(!runs.join("t").exists(), "no stub folder");
     // The same --run-id then trains.
-    let o = train_cmd(
-        &configs,
-        &runs,
-        "t",
-        "300",
-        &[
-            "--phase",
-            "transfer",
-            "--init-from",
-            runs.join("src").to_str().unwrap(),
-        ],
-    )
-    .output()
-    .unwrap();
+    let o = transfer(&runs.join("src"), "ppo");
     assert!(o.status.success(), "{}", text(&o));
     let _ = std::fs::remove_dir_all(&runs);
     let _ = std::fs::remove_dir_all(&configs);
@@ -664,6 +630,37 @@ fn a_pipeline_in_use_is_refused() {
     assert_refused(&o, &format!("is in use by PID {}", std::process::id()));
     assert!(!runs.join("p").exists(), "no stage started");
     drop(lock);
+    // A stage stopped before its first checkpoint starts again from nothing:
+    // its old logs go.
+    let stage = runs.join("p/pretrain");
+    std::fs::create_dir_all(&stage).unwrap();
+    std::fs::write(
+        stage.join("scalars.csv"),
+        "behaviour,step,tag,value\nold,1,x,1\n",
+    )
+    .unwrap();
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "seabream",
+        "--scenes",
+        "seabream_default",
+        "--pretrain-steps",
+        "100",
+        "--transfer-steps",
+        "100",
+        "--eval-seconds",
+        "1",
+        "--quiet",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "p",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let csv = std::fs::read_to_string(stage.join("scalars.csv")).unwrap();
+    assert!(!csv.contains("old,"), "{csv}");
+    assert!(stage.join("final/state.json").is_file());
     let o = deepfoids(&[
         "pipeline",
         "--species",

@@ -15,7 +15,7 @@ use super::load_scene;
 use super::train::{algo_name, curve_ends, evaluate_run, train_scene};
 use crate::cli::PipelineArgs;
 use crate::io::write_atomic;
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 use std::path::Path;
@@ -217,6 +217,12 @@ fn stage(
         (summary, None, state.agent_steps)
     } else {
         let resume = !deepfoids_learn::checkpoint::checkpoints(dir).is_empty();
+        if !resume && dir.exists() {
+            // Stopped before its first checkpoint: start it again from nothing
+            // (its logs would otherwise hold a second copy of the early steps).
+            std::fs::remove_dir_all(dir)
+                .with_context(|| format!("cannot remove {}", dir.display()))?;
+        }
         let mut opts = args.opts.clone();
         if opts.eval_seconds <= 0.0 {
             opts.eval_seconds = 60.0;
