@@ -32,8 +32,10 @@
 //! agent steps (all behaviours together), atomically. It holds every agent
 //! step counted ([`Learner::before_checkpoint`]: PPO's open trajectories go
 //! into its saved buffer, SAC's replay buffer is saved), so a run killed
-//! after a checkpoint and resumed makes the updates and reaches the final
-//! step of the run never stopped (issue 13 item 4). A resumed run continues
+//! after a checkpoint and resumed reaches the final step of the run never
+//! stopped having learned from every step it counted, and makes the same
+//! updates (see `deepfoids_ppo::inflight` for the one exception: ML-Agents'
+//! rollout, where episode ends time the updates; issue 13 item 4). A resumed run continues
 //! with the weights, optimisers, counters and the algorithm's saved state,
 //! from a reset environment reseeded with `seed + resets` (so its later
 //! experience, and its weights, differ from the uninterrupted run's); its

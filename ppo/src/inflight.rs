@@ -17,7 +17,13 @@
 //!
 //! A resumed run loads the buffer and starts new trajectories from its reset
 //! environment; the newest steps at the checkpoint were not counted yet, so
-//! nothing counted is lost and the updates fall as in the run never stopped.
+//! nothing counted is lost. With the synchronous scheme the updates then fall
+//! at the same steps as in the run never stopped. With ML-Agents' scheme an
+//! update comes once the closed trajectories hold `buffer_size` transitions,
+//! and episode ends close trajectories early; the resumed run's environment
+//! is reseeded, so its episode ends — and the step of an update — can
+//! differ by up to a time horizon, and an update close to the end of the
+//! budget can fall on either side of it.
 //!
 //! # File
 //! `DFROLL01`, the trajectory count (`u64`), then per trajectory its length
