@@ -172,3 +172,27 @@ impl Scalars<'_> {
         self.logger.scalar(self.behaviour, tag, value, self.step)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cut back to step 20 for `a` and 10 for `b`: later rows go, rows of a
+    /// behaviour not in the run stay, and a line cut short by a kill goes.
+    #[test]
+    fn csv_cut_back_to_the_checkpoint() {
+        let path = std::env::temp_dir().join(format!("scalars-{}.csv", std::process::id()));
+        std::fs::write(
+            &path,
+            "behaviour,step,tag,value\na,10,x,1\nb,10,x,2\na,20,Losses/Q1 Loss,3\nb,20,x,4\nc,90,x,5\na,30,x,6\na,40,x,",
+        )
+        .unwrap();
+        let at = BTreeMap::from([("a", 20), ("b", 10)]);
+        truncate_csv(&path, &at).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            "behaviour,step,tag,value\na,10,x,1\nb,10,x,2\na,20,Losses/Q1 Loss,3\nc,90,x,5\n"
+        );
+        let _ = std::fs::remove_file(&path);
+    }
+}
