@@ -59,6 +59,17 @@ pub fn warmup(flag: &str, value: f64) -> Result<()> {
     )
 }
 
+/// A training budget (agent decisions per behaviour): at least one; `0`
+/// would write an untrained policy as if it were trained.
+pub fn train_steps(flag: &str, value: u64) -> Result<()> {
+    if value == 0 {
+        bail!(
+            "{flag} 0 would train nothing; give at least 1 agent decision per behaviour (or leave {flag} out for the thesis' budget)"
+        );
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

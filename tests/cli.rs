@@ -475,7 +475,8 @@ fn compare_ppo_and_sac_runs() {
     );
 }
 
-/// `pipeline --species all`: the three species pretrained (here 0 steps),
+/// `pipeline --species all`: the three species pretrained (here one decision
+/// each: 0 is refused),
 /// then `three_species` transferred from all three runs, one per species;
 /// the summary has a row per stage.
 #[test]
@@ -488,7 +489,7 @@ fn pipeline_all_species_transfers_into_three_species() {
         "--scenes",
         "three_species",
         "--pretrain-steps",
-        "0",
+        "1",
         "--transfer-steps",
         "200",
         "--eval-seconds",

@@ -416,3 +416,260 @@ fn a_finished_command_leaves_no_lock() {
     assert!(!parent.join(name).exists());
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// `configs/` with `configs/train/ppo.toml` checkpointing every 100 agent
+/// decisions (so that a short run has checkpoints to resume from).
+fn configs_checkpointing(name: &str) -> PathBuf {
+    let root = configs_with(name, "count = 10", "count = 10");
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/train");
+    std::fs::create_dir_all(root.join("train")).unwrap();
+    for algo in ["ppo.toml", "sac.toml"] {
+        let t = std::fs::read_to_string(src.join(algo)).unwrap();
+        let t = t
+            .lines()
+            .map(|l| {
+                if l.starts_with("checkpoint_every") {
+                    "checkpoint_every = 100".to_string()
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        std::fs::write(root.join("train").join(algo), t).unwrap();
+    }
+    root
+}
+
+/// `deepfoids --configs ROOT train` on seabream_default into `runs/<id>`.
+fn train_cmd(configs: &Path, runs: &Path, id: &str, steps: &str, extra: &[&str]) -> Command {
+    let mut args = vec![
+        "--configs",
+        configs.to_str().unwrap(),
+        "train",
+        "--scene",
+        "seabream_default",
+        "--steps",
+        steps,
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        id,
+        "--eval-seconds",
+        "0",
+        "--quiet",
+    ];
+    args.extend(extra);
+    command(&args)
+}
+
+/// A training run in the background until `file` appears in its run folder.
+fn train_until(mut cmd: Command, file: &Path) -> Killed {
+    let child = Killed(
+        cmd.stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let start = Instant::now();
+    while !file.exists() && start.elapsed() < Duration::from_secs(180) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(file.exists(), "{} appeared", file.display());
+    child
+}
+
+/// Issue 13 item 2 for training: two fresh runs on one `--run-id` — exactly
+/// one trains; a run in progress refuses a second fresh run, `--resume` and
+/// `--force` alike, naming its PID, and keeps its folder; once it is killed,
+/// `--force` replaces the folder; two `--resume` of one run — the second is
+/// refused. (Before: both fresh runs could succeed, both resumes always ran,
+/// and `--force` deleted the live run's folder.)
+#[test]
+fn one_process_at_a_time_trains_a_run() {
+    let configs = configs_checkpointing("train-lock-configs");
+    let runs = temp("train-lock");
+    let dir = runs.join("r");
+
+    // Two fresh runs at once: one trains, the other is refused.
+    let both: Vec<Child> = (0..2)
+        .map(|_| {
+            train_cmd(&configs, &runs, "r", "300", &[])
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    let outs: Vec<Output> = both
+        .into_iter()
+        .map(|c| c.wait_with_output().unwrap())
+        .collect();
+    let ok = outs.iter().filter(|o| o.status.success()).count();
+    assert_eq!(
+        ok,
+        1,
+        "exactly one trains:\n{}\n{}",
+        text(&outs[0]),
+        text(&outs[1])
+    );
+    let refused = outs.iter().find(|o| !o.status.success()).unwrap();
+    let t = text(refused);
+    assert!(
+        t.contains("is in use by PID") || t.contains("exists; use --resume"),
+        "{t}"
+    );
+    assert!(dir.join("final/state.json").is_file());
+
+    // A run in progress (a long --resume) refuses everybody else.
+    let live = train_until(
+        train_cmd(&configs, &runs, "r", "100000000", &["--resume"]),
+        &runs.join(".r.lock"),
+    );
+    let held = format!("is in use by PID {} on host", live.0.id());
+    let fresh = train_cmd(&configs, &runs, "r", "300", &[])
+        .output()
+        .unwrap();
+    assert_refused(&fresh, &held);
+    let resume = train_cmd(&configs, &runs, "r", "300", &["--resume"])
+        .output()
+        .unwrap();
+    assert_refused(&resume, &held);
+    let force = train_cmd(&configs, &runs, "r", "300", &["--force"])
+        .output()
+        .unwrap();
+    assert_refused(&force, "--force does not replace a run that is in use");
+    assert_refused(&force, &held);
+    assert!(
+        dir.join("config.toml").is_file() && dir.join("final/state.json").is_file(),
+        "the live run's folder is intact"
+    );
+    drop(live); // SIGKILL
+
+    // Nobody holds it now: --force replaces the folder (a stale lock is taken over).
+    std::fs::write(dir.join("marker"), "old").unwrap();
+    let force = train_cmd(&configs, &runs, "r", "300", &["--force"])
+        .output()
+        .unwrap();
+    assert!(force.status.success(), "{}", text(&force));
+    assert!(!dir.join("marker").exists(), "--force replaced the folder");
+    assert!(dir.join("final/state.json").is_file());
+    assert!(!runs.join(".r.lock").exists(), "released at exit");
+    // A resume says where it continues from (checkpoints every 100 steps).
+    let resume = train_cmd(&configs, &runs, "r", "400", &["--resume"])
+        .output()
+        .unwrap();
+    assert!(resume.status.success(), "{}", text(&resume));
+    assert!(
+        text(&resume).contains("resumed from step 300 (checkpoint ")
+            && text(&resume).contains("step-0000000300)"),
+        "{}",
+        text(&resume)
+    );
+    let _ = std::fs::remove_dir_all(&runs);
+    let _ = std::fs::remove_dir_all(&configs);
+}
+
+/// Issue 13 item 5: `--steps 0` is refused before anything is written, and a
+/// wrong `--init-from` leaves no run folder behind to block the `--run-id`.
+#[test]
+fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
+    let configs = configs_checkpointing("train-refuse-configs");
+    let runs = temp("train-refuse");
+    let o = train_cmd(&configs, &runs, "zero", "0", &[])
+        .output()
+        .unwrap();
+    assert_refused(&o, "--steps 0 would train nothing");
+    assert!(!runs.join("zero").exists());
+
+    // `train --run-id t --phase transfer --init-from <from> [--algo <algo>]`.
+    let transfer = |from: &Path, algo: &str| {
+        let from = from.to_str().unwrap();
+        let args = ["--phase", "transfer", "--init-from", from, "--algo", algo];
+        train_cmd(&configs, &runs, "t", "300", &args)
+            .output()
+            .unwrap()
+    };
+    let o = transfer(&runs.join("no-such-run"), "ppo");
+    assert_refused(&o, "no-such-run");
+    assert!(!runs.join("t").exists(), "no stub folder");
+    // A run of the other algorithm: refused by name, nothing created either.
+    let o = train_cmd(&configs, &runs, "src", "300", &[])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let o = transfer(&runs.join("src"), "sac");
+    assert_refused(&o, "ppo");
+    assert!(!runs.join("t").exists(), "no stub folder");
+    // The same --run-id then trains.
+    let o = transfer(&runs.join("src"), "ppo");
+    assert!(o.status.success(), "{}", text(&o));
+    let _ = std::fs::remove_dir_all(&runs);
+    let _ = std::fs::remove_dir_all(&configs);
+}
+
+/// A pipeline folder in use (here: locked by this test) is refused, naming
+/// the holder, before any stage starts.
+#[test]
+fn a_pipeline_in_use_is_refused() {
+    let runs = temp("pipeline-lock");
+    let lock = deepfoids_env::lock::DirLock::acquire(&runs.join("p")).unwrap();
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "seabream",
+        "--pretrain-steps",
+        "100",
+        "--transfer-steps",
+        "100",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "p",
+    ]);
+    assert_refused(&o, &format!("is in use by PID {}", std::process::id()));
+    assert!(!runs.join("p").exists(), "no stage started");
+    drop(lock);
+    // A stage stopped before its first checkpoint starts again from nothing:
+    // its old logs go.
+    let stage = runs.join("p/pretrain");
+    std::fs::create_dir_all(&stage).unwrap();
+    std::fs::write(
+        stage.join("scalars.csv"),
+        "behaviour,step,tag,value\nold,1,x,1\n",
+    )
+    .unwrap();
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "seabream",
+        "--scenes",
+        "seabream_default",
+        "--pretrain-steps",
+        "100",
+        "--transfer-steps",
+        "100",
+        "--eval-seconds",
+        "1",
+        "--quiet",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "p",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let csv = std::fs::read_to_string(stage.join("scalars.csv")).unwrap();
+    assert!(!csv.contains("old,"), "{csv}");
+    assert!(stage.join("final/state.json").is_file());
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "seabream",
+        "--pretrain-steps",
+        "0",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+    ]);
+    assert_refused(&o, "--pretrain-steps 0 would train nothing");
+    let _ = std::fs::remove_dir_all(&runs);
+}

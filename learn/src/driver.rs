@@ -29,11 +29,18 @@
 //!
 //! # Checkpoints and resume
 //! A checkpoint is written at the first decision past each `checkpoint_every`
-//! agent steps (all behaviours together), atomically. A resumed run continues
+//! agent steps (all behaviours together), atomically. It holds every agent
+//! step counted ([`Learner::before_checkpoint`]: PPO's open trajectories go
+//! into its saved buffer, SAC's replay buffer is saved), so a run killed
+//! after a checkpoint and resumed reaches the final step of the run never
+//! stopped having learned from every step it counted, and makes the same
+//! updates (see `deepfoids_ppo::inflight` for the one exception: ML-Agents'
+//! rollout, where episode ends time the updates; issue 13 item 4). A resumed run continues
 //! with the weights, optimisers, counters and the algorithm's saved state,
-//! from a reset environment reseeded with `seed + resets`. A lock on the run
-//! folder and an exact resume (issue 13) belong in [`open_run`] and in the
-//! algorithms' `save`/`resume_learner`.
+//! from a reset environment reseeded with `seed + resets` (so its later
+//! experience, and its weights, differ from the uninterrupted run's); its
+//! logs are first cut back to the checkpoint ([`Logger::open`]). The caller
+//! holds the run folder's lock ([`open_run`]).
 
 use crate::backend::Backend;
 use crate::checkpoint::{
@@ -193,6 +200,15 @@ pub trait Learner {
     /// Gradient updates so far.
     fn updates(&self) -> u64;
 
+    /// Just before a checkpoint is saved: put what is in flight where the
+    /// checkpoint keeps it (PPO closes its open trajectories into the
+    /// buffer), so that it holds every agent step counted. The run goes on
+    /// from this state whether or not it is killed later, so a resumed run
+    /// continues as the uninterrupted one (issue 13 item 4).
+    fn before_checkpoint(&mut self) -> Result<()> {
+        Ok(())
+    }
+
     /// Save into `dir` under behaviour `name`: the weights, and for a
     /// checkpoint also the optimisers and the algorithm's state.
     fn save(&self, dir: &Path, name: &str, checkpoint: bool) -> Result<()>;
@@ -256,9 +272,43 @@ struct Behaviour<L> {
     stats: EpisodeStats,
 }
 
-/// The run folder of a training run (the place for issue 13's lock).
+/// The run folder of a training run. The caller holds its lock
+/// (`deepfoids_env::lock::DirLock`, taken by the `train` and `pipeline`
+/// commands for the life of the process) and has checked `--init-from`
+/// ([`open_sources`]) before creating it.
 pub fn open_run(run_dir: &Path) -> Result<()> {
     std::fs::create_dir_all(run_dir).map_err(LearnError::io(run_dir))
+}
+
+/// The policies of `init_from` — each of `trainer`'s algorithm, this build's
+/// layout and the configured architecture — with a source for every
+/// behaviour of `scene`. Callers check this before they create a run folder,
+/// so a wrong `--init-from` leaves nothing behind (issue 13 item 5).
+pub fn open_sources<T: Trainer>(
+    trainer: &T,
+    init_from: &[PathBuf],
+    scene: &Scene,
+) -> Result<Vec<PolicySource>> {
+    let (hidden, layers) = trainer.architecture();
+    let sources = init_from
+        .iter()
+        .map(|run| {
+            let src = PolicySource::open(
+                run,
+                trainer.algorithm(),
+                "--init-from transfers between runs of the same algorithm",
+            )?;
+            src.state
+                .check_architecture(&src.dir, hidden, layers, trainer.config_name())?;
+            Ok(src)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    if !sources.is_empty() {
+        for b in &scene.behaviours {
+            find_source(&sources, &b.name, &b.species.name)?;
+        }
+    }
+    Ok(sources)
 }
 
 /// Train `trainer`'s algorithm on a scene. See the module documentation.
@@ -291,22 +341,18 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
         None
     };
     let sources: Vec<PolicySource> = if resumed.is_none() {
-        args.init_from
-            .iter()
-            .map(|run| {
-                let src = PolicySource::open(
-                    run,
-                    algo,
-                    "--init-from transfers between runs of the same algorithm",
-                )?;
-                src.state
-                    .check_architecture(&src.dir, hidden, layers, trainer.config_name())?;
-                Ok(src)
-            })
-            .collect::<Result<_>>()?
+        open_sources(trainer, &args.init_from, &args.scene)?
     } else {
         vec![]
     };
+
+    if let Some((dir, st)) = &resumed {
+        eprintln!(
+            "resumed from step {} (checkpoint {})",
+            st.agent_steps,
+            dir.display()
+        );
+    }
 
     // ---- Environment -------------------------------------------------------------
     let resets = resumed.as_ref().map_or(0, |s| s.1.resets + 1);
@@ -360,7 +406,10 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
         });
     }
     let names: Vec<String> = behaviours.iter().map(|b| b.name.clone()).collect();
-    let mut logger = Logger::open(&run_dir, &names)?;
+    let resumed_at: Option<Vec<u64>> = resumed
+        .as_ref()
+        .map(|_| behaviours.iter().map(|b| b.agent_steps).collect());
+    let mut logger = Logger::open(&run_dir, &names, resumed_at.as_deref())?;
     let mut state = resumed.map(|s| s.1).unwrap_or_else(|| RunState {
         algo,
         layout: crate::body::ENCODER_LAYOUT,
@@ -481,6 +530,9 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
             state.ticks = tick;
             state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
             let dir = checkpoint::checkpoint_dir(&run_dir, state.agent_steps);
+            for b in &mut behaviours {
+                b.learner.before_checkpoint()?;
+            }
             save_all(&dir, &behaviours, &mut state, true, false)?;
             checkpoint::prune(&run_dir, settings.keep_checkpoints);
             logger.flush()?;

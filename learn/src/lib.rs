@@ -19,6 +19,7 @@ pub mod policy;
 pub mod progress;
 pub mod stats;
 pub mod tensor;
+pub mod tfevents;
 
 pub use backend::Backend;
 pub use body::{ACTIONS, Body, BodyConfig, ENCODER_LAYOUT};

@@ -5,6 +5,7 @@
 pub mod config;
 pub mod gae;
 pub mod gaussian;
+pub mod inflight;
 pub mod model;
 pub mod policy;
 pub mod reward_scale;

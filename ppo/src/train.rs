@@ -31,13 +31,16 @@
 //!   budget, by its own agent steps.
 //! * Minibatches: `epochs` passes over the buffer, each a fresh shuffle
 //!   (keyed by the update), in `floor(transitions / batch_size)` minibatches.
-//! * Checkpoints hold the weights, Adam's state, the update count and the
-//!   reward statistics; open trajectories and a partly filled buffer are not
-//!   saved (a resumed run collects afresh).
+//! * Checkpoints hold the weights, Adam's state, the update count, the
+//!   reward statistics, the synchronous scheme's clock and the experience not
+//!   yet learned from: open trajectories are cut before their newest step
+//!   (bootstrapped as at the time horizon) and the buffer is saved
+//!   ([`crate::inflight`]), so a resumed run loses no counted step.
 
 use crate::config::{PpoConfig, Rollout as RolloutScheme, Schedule};
 use crate::gae::{BOOTSTRAP, CONTINUE, TERMINAL};
 use crate::gaussian::{entropy, entropy_f32, log_prob, log_prob_f32};
+use crate::inflight::{cut_open, load_buffer, save_buffer};
 use crate::model::{ActorCritic, ActorCriticConfig};
 use crate::reward_scale::RunningMeanStd;
 use crate::rollout::{Rollout, stack_of};
@@ -70,6 +73,9 @@ pub struct Ppo {
 pub struct PpoState {
     pub updates: u64,
     pub reward_norm: RunningMeanStd,
+    /// Decisions stored since the last update (the synchronous scheme's clock).
+    #[serde(default)]
+    pub since_update: usize,
 }
 
 fn adam(cfg: &PpoConfig) -> ModuleOptimizer {
@@ -83,6 +89,11 @@ pub fn model_config(hidden: usize, layers: usize, init_log_std: f32) -> ActorCri
     ActorCriticConfig::new()
         .with_body(BodyConfig::new().with_hidden(hidden).with_layers(layers))
         .with_init_log_std(init_log_std)
+}
+
+/// The experience not yet learned from, in a checkpoint ([`crate::inflight`]).
+fn rollout_file(dir: &Path, name: &str) -> std::path::PathBuf {
+    behaviour_file(dir, name, "rollout.bin")
 }
 
 /// The model file of a behaviour in a checkpoint or final folder.
@@ -129,6 +140,7 @@ impl Trainer for Ppo {
             PpoState {
                 updates: 0,
                 reward_norm: RunningMeanStd::default(),
+                since_update: 0,
             },
         ))
     }
@@ -150,7 +162,14 @@ impl Trainer for Ppo {
         })?;
         let ppo: PpoState =
             load_json(&behaviour_file(dir, &state.name, "ppo.json"), "PPO's state")?;
-        Ok(PpoLearner::new(cfg.clone(), ctx, model, optim, ppo))
+        let mut learner = PpoLearner::new(cfg.clone(), ctx, model, optim, ppo);
+        // Checkpoints before issue 13 hold no rollout: start with an empty buffer.
+        let file = rollout_file(dir, &state.name);
+        if file.is_file() {
+            learner.rollout.buffer = load_buffer(&file)?;
+        }
+        learner.since_update = learner.state.since_update;
+        Ok(learner)
     }
 
     fn transfer_learner(
@@ -170,6 +189,7 @@ impl Trainer for Ppo {
             PpoState {
                 updates: 0,
                 reward_norm: RunningMeanStd::default(),
+                since_update: 0,
             },
         ))
     }
@@ -592,6 +612,11 @@ impl Learner for PpoLearner {
         self.state.updates
     }
 
+    fn before_checkpoint(&mut self) -> Result<()> {
+        cut_open(&mut self.rollout, self.cfg.gamma, self.cfg.gae_lambda);
+        Ok(())
+    }
+
     fn save(&self, dir: &Path, name: &str, checkpoint: bool) -> Result<()> {
         save_module(&self.model, &model_file(dir, name))?;
         if checkpoint {
@@ -601,7 +626,12 @@ impl Learner for PpoLearner {
                 path: of.clone(),
                 reason: format!("{e:?}"),
             })?;
-            save_json(&behaviour_file(dir, name, "ppo.json"), &self.state)?;
+            let state = PpoState {
+                since_update: self.since_update,
+                ..self.state.clone()
+            };
+            save_json(&behaviour_file(dir, name, "ppo.json"), &state)?;
+            save_buffer(&self.rollout.buffer, &rollout_file(dir, name))?;
         }
         Ok(())
     }

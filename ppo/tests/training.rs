@@ -77,8 +77,14 @@ fn run(
 fn read_events(dir: &Path) -> Vec<(String, i64, f32)> {
     use protobuf::Message;
     let mut out = vec![];
-    for e in std::fs::read_dir(dir).unwrap() {
-        let bytes = std::fs::read(e.unwrap().path()).unwrap();
+    // By name, as TensorBoard reads them (the name starts with the time).
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    for file in files {
+        let bytes = std::fs::read(file).unwrap();
         let mut at = 0;
         while at + 12 <= bytes.len() {
             let len = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
@@ -211,9 +217,10 @@ fn resume_continues_at_the_same_step_and_init_from_resets_it() {
         (state.behaviours[0].agent_steps, state.behaviours[0].budget),
         (4000, 4000)
     );
-    // 3 updates before the checkpoint at 2000 (the partial rollout there is dropped),
-    // 3 after it: at 2520, 3040, 3560.
-    assert_eq!(state.behaviours[0].updates, 6);
+    // Updates every 52 decisions as if never stopped: 520, 1040, 1560, then
+    // (the 44 decisions since 1560 kept in the checkpoint) 2080, 2600, 3120,
+    // 3640. Before issue 13 the partial rollout was dropped: 2520, 3040, 3560.
+    assert_eq!(state.behaviours[0].updates, 7);
     // Resuming another scene is refused with the reason.
     let e = train(
         cfg.clone(),
@@ -401,4 +408,131 @@ fn ppo_improves_over_the_untrained_policy() {
         last > first + 3.0,
         "reward per decision: first {first:.3}, last {last:.3}"
     );
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let dst = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &dst);
+        } else {
+            std::fs::copy(e.path(), dst).unwrap();
+        }
+    }
+}
+
+/// `dir` as a run killed right after its checkpoint at `step`: no final
+/// policy, no later checkpoint, but the points logged after it (as a killed
+/// run leaves them).
+fn kill_after_checkpoint(dir: &Path, step: u64) {
+    std::fs::remove_dir_all(dir.join("final")).unwrap();
+    let all = checkpoints(dir);
+    assert!(all.iter().any(|c| c.0 == step), "{all:?}");
+    for (s, d) in all {
+        if s > step {
+            std::fs::remove_dir_all(d).unwrap();
+        }
+    }
+}
+
+/// Every `(behaviour, tag, step)` of `scalars.csv` once.
+fn csv_rows_once(dir: &Path) -> BTreeSet<(String, String, u64)> {
+    let csv = std::fs::read_to_string(dir.join("scalars.csv")).unwrap();
+    let mut seen = BTreeSet::new();
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.splitn(4, ',').collect();
+        let key = (f[0].to_string(), f[2].to_string(), f[1].parse().unwrap());
+        assert!(seen.insert(key.clone()), "{key:?} twice in scalars.csv");
+    }
+    seen
+}
+
+/// Issue 13 items 3 and 4. A run killed after its checkpoint at 1,400 agent
+/// steps (2,700-step budget, 10 fish, 512-transition buffers) and resumed
+/// makes as many updates and ends at the same step as the run never stopped:
+/// with the synchronous scheme 5 updates (every 52 decisions: 520 … 2600)
+/// at the same steps — before issue 13 the 36 decisions since the update at
+/// 1,040 were dropped and counted, so the resumed run updated at 1,920 and
+/// 2,440 only: 4. TensorBoard's event files (read with tensorboard-proto)
+/// and `scalars.csv` hold one value per tag and step, the points up to the
+/// checkpoint kept.
+#[test]
+fn a_killed_run_resumes_as_the_run_never_stopped() {
+    for rollout in [Rollout::Synchronous, Rollout::MlAgents] {
+        let cfg = PpoConfig {
+            rollout,
+            checkpoint_every: 700,
+            keep_checkpoints: 10,
+            ..small_config()
+        };
+        let whole = temp(&format!("whole-{rollout:?}"));
+        run(
+            &whole,
+            "seabream_default",
+            cfg.clone(),
+            2700,
+            4,
+            false,
+            vec![],
+        );
+        let never_stopped = RunState::load(&whole.join("final")).unwrap();
+        let killed = temp(&format!("killed-{rollout:?}"));
+        copy_dir(&whole, &killed);
+        kill_after_checkpoint(&killed, 1400);
+        let before = read_events(&killed.join("tb/seabream_regular"));
+        assert!(
+            before.iter().any(|e| e.1 > 1400),
+            "the killed run logged after its checkpoint"
+        );
+        run(
+            &killed,
+            "seabream_default",
+            cfg.clone(),
+            2700,
+            4,
+            true,
+            vec![],
+        );
+        let resumed = RunState::load(&killed.join("final")).unwrap();
+        assert_eq!(
+            (resumed.agent_steps, resumed.behaviours[0].updates),
+            (
+                never_stopped.agent_steps,
+                never_stopped.behaviours[0].updates
+            ),
+            "{rollout:?}: final step and updates"
+        );
+        assert_eq!(resumed.agent_steps, 2700);
+
+        let events = read_events(&killed.join("tb/seabream_regular"));
+        let mut seen = BTreeSet::new();
+        for (tag, step, _) in &events {
+            assert!(
+                seen.insert((tag.clone(), *step)),
+                "{rollout:?}: {tag} twice at step {step} in TensorBoard"
+            );
+        }
+        let kept: Vec<_> = before.iter().filter(|e| e.1 <= 1400).collect();
+        assert!(!kept.is_empty());
+        for e in kept {
+            assert!(events.contains(e), "{e:?} kept");
+        }
+        let rows = csv_rows_once(&killed);
+        assert_eq!(rows.len(), events.len(), "the CSV holds the same points");
+        let update_steps = |ev: &[(String, i64, f32)]| -> Vec<i64> {
+            ev.iter()
+                .filter(|e| e.0 == "Losses/Value Loss")
+                .map(|e| e.1)
+                .collect()
+        };
+        if rollout == Rollout::Synchronous {
+            let whole_events = read_events(&whole.join("tb/seabream_regular"));
+            assert_eq!(update_steps(&events), [520, 1040, 1560, 2080, 2600]);
+            assert_eq!(update_steps(&events), update_steps(&whole_events));
+        }
+        let _ = std::fs::remove_dir_all(&whole);
+        let _ = std::fs::remove_dir_all(&killed);
+    }
 }

@@ -28,6 +28,10 @@
 //! two f32 stacks per transition. Rows: `ceil(capacity / agents) + 3` — two
 //! rows of history before the oldest sampled one, and the newest row, whose
 //! transition is not complete yet.
+//!
+//! A checkpoint's replay file (`<behaviour>.replay.bin`) holds only the rows
+//! written so far ([`Replay::file_bytes`]): 10,000 transitions of a
+//! 102,400-transition buffer take 14 MB, not 143.6 MB.
 
 use deepfoids_env::VECTOR_OBS;
 use deepfoids_learn::ACTIONS;
@@ -45,7 +49,12 @@ pub use deepfoids_learn::frames::PROXIMITY_TOLERANCE;
 /// Bytes stored per transition (see the module documentation).
 pub const BYTES_PER_TRANSITION: usize = FRAME_BYTES + 4 * VECTOR_OBS + 4 * ACTIONS + 4 + 1 + 1;
 
-const MAGIC: &[u8; 8] = b"DFREPLY2";
+/// Files written since issue 13: only the rows written so far.
+const MAGIC: &[u8; 8] = b"DFREPLY3";
+/// Files before: every row of the capacity, filled or not (still read).
+const MAGIC_FULL: &[u8; 8] = b"DFREPLY2";
+/// Bytes of a file's header: magic, agents, rows, head.
+const HEADER_BYTES: usize = 8 + 3 * 8;
 
 /// The history of an agent's next stack: 0 after a respawn (the stack restarts
 /// with zeros, SPEC §7), else one more older frame, at most two.
@@ -275,7 +284,22 @@ impl Replay {
         }
     }
 
-    /// Write the buffer to `path` (inside a checkpoint folder being written atomically).
+    /// Rows holding data: slots `0..filled_rows()` (row `t` lives in slot
+    /// `t % rows`, so until the ring wraps only the first `head` slots are written).
+    fn filled_rows(&self) -> usize {
+        (self.head as usize).min(self.rows)
+    }
+
+    /// The size of the file [`save`](Self::save) writes: the header, then
+    /// [`BYTES_PER_TRANSITION`] per agent and one flag byte per filled row —
+    /// proportional to what the buffer holds, not to its capacity.
+    pub fn file_bytes(&self) -> usize {
+        let rows = self.filled_rows();
+        HEADER_BYTES + rows * self.agents * BYTES_PER_TRANSITION + rows
+    }
+
+    /// Write the buffer's filled rows to `path` (inside a checkpoint folder
+    /// being written atomically).
     pub fn save(&self, path: &Path) -> Result<()> {
         self.write(path).map_err(LearnError::io(path))
     }
@@ -287,16 +311,20 @@ impl Replay {
         for x in [self.agents as u64, self.rows as u64, self.head] {
             w.write_all(&x.to_le_bytes())?;
         }
-        w.write_all(&self.frames)?;
-        for xs in [&self.vectors, &self.actions, &self.rewards] {
-            for x in xs.iter() {
+        let slots = self.filled_rows() * self.agents;
+        w.write_all(&self.frames[..slots * FRAME_BYTES])?;
+        for (xs, width) in [
+            (&self.vectors, VECTOR_OBS),
+            (&self.actions, ACTIONS),
+            (&self.rewards, 1),
+        ] {
+            for x in &xs[..slots * width] {
                 w.write_all(&x.to_le_bytes())?;
             }
         }
-        w.write_all(&self.terminated)?;
-        w.write_all(&self.history)?;
-        let flags: Vec<u8> = self
-            .rewarded
+        w.write_all(&self.terminated[..slots])?;
+        w.write_all(&self.history[..slots])?;
+        let flags: Vec<u8> = self.rewarded[..self.filled_rows()]
             .iter()
             .zip(&self.linked)
             .map(|(&r, &l)| r as u8 | (l as u8) << 1)
@@ -315,7 +343,7 @@ impl Replay {
         };
         let mut magic = [0u8; 8];
         r.read_exact(&mut magic).map_err(|_| bad("too short"))?;
-        if &magic != MAGIC {
+        if &magic != MAGIC && &magic != MAGIC_FULL {
             return Err(bad("wrong magic bytes"));
         }
         let mut word = || -> Result<u64> {
@@ -335,21 +363,35 @@ impl Replay {
             });
         }
         buf.head = head;
+        let filled = if &magic == MAGIC_FULL {
+            buf.rows
+        } else {
+            buf.filled_rows()
+        };
+        let slots = filled * agents;
         let read = |r: &mut dyn Read, dst: &mut [u8]| -> Result<()> {
             r.read_exact(dst).map_err(|_| bad("truncated"))
         };
-        read(&mut r, &mut buf.frames)?;
-        for xs in [&mut buf.vectors, &mut buf.actions, &mut buf.rewards] {
-            let mut bytes = vec![0u8; xs.len() * 4];
+        read(&mut r, &mut buf.frames[..slots * FRAME_BYTES])?;
+        for (xs, width) in [
+            (&mut buf.vectors, VECTOR_OBS),
+            (&mut buf.actions, ACTIONS),
+            (&mut buf.rewards, 1),
+        ] {
+            let mut bytes = vec![0u8; slots * width * 4];
             read(&mut r, &mut bytes)?;
             for (x, b) in xs.iter_mut().zip(bytes.chunks_exact(4)) {
                 *x = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
             }
         }
-        read(&mut r, &mut buf.terminated)?;
-        read(&mut r, &mut buf.history)?;
-        let mut flags = vec![0u8; buf.rows];
+        read(&mut r, &mut buf.terminated[..slots])?;
+        read(&mut r, &mut buf.history[..slots])?;
+        let mut flags = vec![0u8; filled];
         read(&mut r, &mut flags)?;
+        let mut rest = [0u8; 1];
+        if r.read(&mut rest).map_err(|_| bad("unreadable"))? != 0 {
+            return Err(bad("longer than its rows"));
+        }
         for (i, f) in flags.iter().enumerate() {
             buf.rewarded[i] = f & 1 != 0;
             buf.linked[i] = f & 2 != 0;
@@ -496,6 +538,84 @@ mod tests {
         assert!(e.contains("buffer_size"), "{e}");
         std::fs::write(&path, b"nonsense").unwrap();
         assert!(Replay::load(&path, 6, 2).is_err());
+        let _ = std::fs::remove_file(&path);
+    }
+
+    /// Issue 13 item 6: a checkpoint's replay file holds the rows written,
+    /// not the capacity (once 143.6 MB for 10,000 transitions). Capacity
+    /// 1,000 with 4 agents is 253 rows; after 10 rows the file is the header
+    /// plus 10 × 4 × 1,402 bytes plus 10 flag bytes, after 20 rows twice the
+    /// data; a full ring is 253 rows. Each reads back identical, and
+    /// samples the same transitions.
+    #[test]
+    fn the_file_holds_only_the_filled_rows() {
+        let path = std::env::temp_dir().join(format!("replay-fill-{}.bin", std::process::id()));
+        let mut b = Replay::new(1000, 4);
+        assert_eq!(b.rows, 253);
+        let mut sizes = vec![];
+        for (from, to) in [(0, 10), (10, 20), (20, 300)] {
+            for r in from..to {
+                push_row(&mut b, r, 2, true);
+                b.reward(
+                    &[r as f32, 1.0, 2.0, -1.0],
+                    &[r % 7 == 3, false, false, false],
+                );
+            }
+            b.save(&path).unwrap();
+            let len = std::fs::metadata(&path).unwrap().len() as usize;
+            assert_eq!(len, b.file_bytes());
+            sizes.push(len);
+            let c = Replay::load(&path, 1000, 4).unwrap();
+            assert_eq!(
+                (c.head, &c.frames, &c.vectors, &c.actions),
+                (b.head, &b.frames, &b.vectors, &b.actions)
+            );
+            assert_eq!(
+                (
+                    &c.rewards,
+                    &c.terminated,
+                    &c.history,
+                    &c.rewarded,
+                    &c.linked
+                ),
+                (
+                    &b.rewards,
+                    &b.terminated,
+                    &b.history,
+                    &b.rewarded,
+                    &b.linked
+                )
+            );
+            let (mut x, mut y) = (Batch::default(), Batch::default());
+            let mut k = 0usize;
+            b.sample(
+                16,
+                |m| {
+                    k = (k * 31 + 7) % m;
+                    k
+                },
+                &mut x,
+            );
+            let mut k = 0usize;
+            c.sample(
+                16,
+                |m| {
+                    k = (k * 31 + 7) % m;
+                    k
+                },
+                &mut y,
+            );
+            assert_eq!((x.grids.bytes, x.rewards), (y.grids.bytes, y.rewards));
+        }
+        assert_eq!(sizes[0], HEADER_BYTES + 10 * 4 * 1402 + 10);
+        assert_eq!(sizes[1] - HEADER_BYTES, 2 * (sizes[0] - HEADER_BYTES));
+        assert_eq!(sizes[2], HEADER_BYTES + 253 * 4 * 1402 + 253);
+        // A file cut short, or with bytes past its rows, is refused.
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+        assert!(Replay::load(&path, 1000, 4).is_err());
+        std::fs::write(&path, [&bytes[..], &[0]].concat()).unwrap();
+        assert!(Replay::load(&path, 1000, 4).is_err());
         let _ = std::fs::remove_file(&path);
     }
 }

@@ -224,12 +224,16 @@ impl Trainer for Sac {
         let st: SacState = load_json(&state_file(dir, name), "SAC's state")?;
         let net = net_config(cfg.hidden, cfg.layers, st.log_std_bounds);
         let replay = if st.replay_saved {
-            Some(Replay::load(
-                &replay_file(dir, name),
-                cfg.buffer_size,
-                ctx.info.count,
-            )?)
+            let replay = Replay::load(&replay_file(dir, name), cfg.buffer_size, ctx.info.count)?;
+            eprintln!(
+                "{name}: replay buffer restored: {} transitions",
+                replay.len()
+            );
+            Some(replay)
         } else {
+            eprintln!(
+                "{name}: the checkpoint holds no replay buffer (save_replay_buffer = false): it starts empty"
+            );
             None
         };
         let parts = Parts {

@@ -161,6 +161,73 @@ fn resume_restores_the_step_count_and_the_replay_buffer() {
     let _ = std::fs::remove_dir_all(&dir2);
 }
 
+/// Issue 13 items 3 and 4 for SAC: a run killed after its checkpoint at
+/// 2,000 agent steps (3,500-step budget, checkpoints every 1,000) and resumed
+/// ends at the same step with the same number of updates as the run never
+/// stopped — 1,000 steps before the first update, then one per 100: 25 — and
+/// its TensorBoard events and `scalars.csv` hold one value per tag and step,
+/// the points up to the checkpoint kept.
+#[test]
+fn a_killed_run_resumes_as_the_run_never_stopped() {
+    use deepfoids_learn::tfevents::scalars;
+    use std::collections::BTreeSet;
+    let mut cfg = small_config();
+    cfg.keep_checkpoints = 10;
+    let whole = temp("whole");
+    run(&whole, cfg.clone(), 3500, 2, false);
+    let never_stopped = RunState::load(&whole.join("final")).unwrap();
+    assert_eq!(never_stopped.behaviours[0].updates, 25);
+    // The killed run: the same folder without final/ and the checkpoint at 3,000.
+    let killed = temp("killed");
+    std::fs::create_dir_all(&killed).unwrap();
+    let cp = std::process::Command::new("cp")
+        .args([
+            "-a",
+            &format!("{}/.", whole.display()),
+            killed.to_str().unwrap(),
+        ])
+        .status()
+        .unwrap();
+    assert!(cp.success());
+    std::fs::remove_dir_all(killed.join("final")).unwrap();
+    for (step, d) in checkpoints(&killed) {
+        if step > 2000 {
+            std::fs::remove_dir_all(d).unwrap();
+        }
+    }
+    let tb = killed.join("tb/seabream_regular");
+    let before = scalars(&tb).unwrap();
+    assert!(before.iter().any(|p| p.step > 2000));
+    run(&killed, cfg, 3500, 2, true);
+    let resumed = RunState::load(&killed.join("final")).unwrap();
+    assert_eq!(
+        (resumed.agent_steps, resumed.behaviours[0].updates),
+        (3500, 25)
+    );
+    let after = scalars(&tb).unwrap();
+    let mut seen = BTreeSet::new();
+    for p in &after {
+        assert!(
+            seen.insert((p.tag.clone(), p.step)),
+            "{} twice at step {} in TensorBoard",
+            p.tag,
+            p.step
+        );
+    }
+    for p in before.iter().filter(|p| p.step <= 2000) {
+        assert!(after.contains(p), "{p:?} kept");
+    }
+    let csv = std::fs::read_to_string(killed.join("scalars.csv")).unwrap();
+    let mut rows = BTreeSet::new();
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.splitn(4, ',').collect();
+        assert!(rows.insert((f[1], f[2])), "{line}: twice in scalars.csv");
+    }
+    assert_eq!(rows.len(), after.len());
+    let _ = std::fs::remove_dir_all(&whole);
+    let _ = std::fs::remove_dir_all(&killed);
+}
+
 /// Learning: ten seabream in the 3 m cube, 8,000 agent steps, one update of 128
 /// transitions per decision after the first 500 steps. What SAC learns first is
 /// to stop hitting the net: the boundary-collision term (≈ −6 to −8 per decision

@@ -15,7 +15,7 @@ use super::load_scene;
 use super::train::{algo_name, curve_ends, evaluate_run, train_scene};
 use crate::cli::PipelineArgs;
 use crate::io::write_atomic;
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 use std::path::Path;
@@ -78,7 +78,18 @@ pub fn run(dirs: &ConfigDirs, args: &PipelineArgs) -> Result<()> {
             opts.seed
         )
     });
+    for (flag, steps) in [
+        ("--pretrain-steps", args.pretrain_steps),
+        ("--transfer-steps", args.transfer_steps),
+    ] {
+        if let Some(s) = steps {
+            crate::bounds::train_steps(flag, s)?;
+        }
+    }
     let root = opts.runs_dir.join(&id);
+    // One process per pipeline folder for the life of this one (issue 13
+    // item 2); each stage's run folder is locked as well while it trains.
+    let _lock = crate::io::lock_dir(&root)?;
     std::fs::create_dir_all(&root)?;
     eprintln!(
         "pipeline {id}: pretrain in {}, then transfer into {}",
@@ -194,6 +205,7 @@ fn stage(
 ) -> Result<Row> {
     let phase = scene.phase;
     let scene_id = scene.id.clone();
+    let _lock = crate::io::lock_dir(dir)?;
     let finished = dir.join("final").join("state.json").is_file();
     let (summary, train_reward, agent_steps) = if finished {
         eprintln!("{run_id}: finished before, reusing it");
@@ -205,6 +217,12 @@ fn stage(
         (summary, None, state.agent_steps)
     } else {
         let resume = !deepfoids_learn::checkpoint::checkpoints(dir).is_empty();
+        if !resume && dir.exists() {
+            // Stopped before its first checkpoint: start it again from nothing
+            // (its logs would otherwise hold a second copy of the early steps).
+            std::fs::remove_dir_all(dir)
+                .with_context(|| format!("cannot remove {}", dir.display()))?;
+        }
         let mut opts = args.opts.clone();
         if opts.eval_seconds <= 0.0 {
             opts.eval_seconds = 60.0;

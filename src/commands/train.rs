@@ -6,6 +6,7 @@ use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
 use anyhow::{Context, Result, bail};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
+use deepfoids_learn::driver::open_sources;
 use deepfoids_learn::{ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_ppo::PpoConfig;
 use deepfoids_sac::SacConfig;
@@ -30,6 +31,20 @@ pub fn run(dirs: &ConfigDirs, args: &TrainCmd) -> Result<Trained> {
         )
     });
     let run_dir = args.opts.runs_dir.join(&run_id);
+    if let Some(steps) = args.steps {
+        crate::bounds::train_steps("--steps", steps)?;
+    }
+    if !args.resume {
+        check_init_from(dirs, &scene, &args.init_from, &args.opts)?;
+    }
+    // One process per run folder, for the life of this one (issue 13 item 2).
+    let _lock = crate::io::lock_dir(&run_dir).map_err(|e| {
+        if args.force {
+            e.context("--force does not replace a run that is in use")
+        } else {
+            e
+        }
+    })?;
     prepare_run_dir(&run_dir, args.resume, args.force)?;
     train_scene(
         dirs,
@@ -50,7 +65,39 @@ pub fn algo_name(a: Algo) -> &'static str {
     }
 }
 
-/// Refuse to overwrite a run by accident (ML-Agents' behaviour).
+/// The runs of `--init-from` must hold policies of this algorithm and
+/// architecture with a source for every behaviour of `scene`: checked before
+/// the run folder is created, so a wrong one leaves no stub behind.
+pub fn check_init_from(
+    dirs: &ConfigDirs,
+    scene: &Scene,
+    init_from: &[PathBuf],
+    opts: &TrainOptions,
+) -> Result<()> {
+    if init_from.is_empty() {
+        return Ok(());
+    }
+    match opts.algo {
+        Algo::Ppo => open_sources(
+            &deepfoids_ppo::Ppo {
+                config: PpoConfig::load(dirs)?,
+            },
+            init_from,
+            scene,
+        )?,
+        Algo::Sac => open_sources(
+            &deepfoids_sac::Sac {
+                config: SacConfig::load(dirs)?,
+            },
+            init_from,
+            scene,
+        )?,
+    };
+    Ok(())
+}
+
+/// Refuse to overwrite a run by accident (ML-Agents' behaviour). The caller
+/// holds the folder's lock, so `--force` never removes a run in use.
 pub fn prepare_run_dir(run_dir: &Path, resume: bool, force: bool) -> Result<()> {
     if resume {
         if !run_dir.is_dir() {
@@ -96,6 +143,9 @@ pub fn train_scene(
             _ => unreachable!("one config is loaded"),
         });
         budgets.insert(b.name.clone(), (budget as i64).into());
+    }
+    if !resume {
+        check_init_from(dirs, &scene, init_from, opts)?;
     }
     std::fs::create_dir_all(run_dir)
         .with_context(|| format!("cannot create {}", run_dir.display()))?;
