@@ -123,7 +123,7 @@ pub struct Quickstart {
 pub const QUICKSTART: Quickstart = Quickstart {
     scene: "seabream_default",
     phase: Phase::Pretrain,
-    steps: 300_000,
+    steps: 600_000,
     seed: 0,
     eval_seconds: 60.0,
 };
