@@ -187,7 +187,7 @@ mod tests {
     /// one waiting step only: nothing to cut. The buffer round-trips exactly.
     #[test]
     fn cut_before_the_newest_step_and_round_trip() {
-        let mut r = Rollout::new(2);
+        let mut r = Rollout::new(2, 8);
         for (i, value) in [1.0, 2.0, 3.0, 8.0].into_iter().enumerate() {
             r.open[0].push(
                 &stack(i),
