@@ -225,6 +225,32 @@ pub fn squashed_sample(
     (action, per_dim.sum_dim(1).flatten(0, 1))
 }
 
+/// `tanh(μ + σ·ε)` for actor outputs `heads` `[n, 2·ACTIONS]` (mean, raw
+/// log-std, turned into log σ by `log_std`); agent `a`'s noise is keyed by
+/// `(seed, first + a, tick)`, so acting and training draw the same actions.
+pub fn squash_heads(
+    heads: &[f32],
+    first: usize,
+    seed: u64,
+    tick: u64,
+    log_std: impl Fn(f32) -> f32,
+    actions: &mut [f32],
+) {
+    use deepfoids_env::rng::{Purpose, Stream};
+    use deepfoids_learn::ACTIONS;
+    for (a, row) in heads.chunks_exact(2 * ACTIONS).enumerate() {
+        let mut noise = Stream::new(seed, Purpose::Exploration, (first + a) as u64, tick);
+        let eps = [noise.normal(), noise.normal(), noise.normal()];
+        let ls: [f32; ACTIONS] = std::array::from_fn(|k| log_std(row[ACTIONS + k]));
+        squashed_sample_f32(
+            &row[..ACTIONS],
+            &ls,
+            &eps,
+            &mut actions[a * ACTIONS..(a + 1) * ACTIONS],
+        );
+    }
+}
+
 /// [`squashed_sample`] for one agent in plain floats: the action and its log-density.
 pub fn squashed_sample_f32(mean: &[f32], log_std: &[f32], eps: &[f32], action: &mut [f32]) -> f32 {
     let mut logp = 0.0;

@@ -2,11 +2,10 @@
 //! sampled `tanh(μ + σ(s)·ε)`), its reference on Burn's layers, and its ONNX
 //! export.
 
-use crate::model::{Actor as SacNet, squashed_sample_f32};
+use crate::model::{Actor as SacNet, squash_heads};
 use crate::train::{SacState, actor_file, net_config, state_file};
 use burn::prelude::*;
 use deepfoids_env::VECTOR_OBS;
-use deepfoids_env::rng::{Purpose, Stream};
 use deepfoids_learn::checkpoint::{BehaviourState, RunState, load_json, load_module};
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
@@ -76,20 +75,14 @@ impl Actor for SacActor {
     ) -> Vec<f32> {
         let heads = self.heads(grids, vectors);
         let mut out = vec![0.0; heads.len() / 2];
-        for (a, row) in heads.chunks_exact(2 * ACTIONS).enumerate() {
-            let mut noise = Stream::new(seed, Purpose::Exploration, (first + a) as u64, tick);
-            let eps = [noise.normal(), noise.normal(), noise.normal()];
-            let log_std: Vec<f32> = row[ACTIONS..]
-                .iter()
-                .map(|&x| self.actor.squash_log_std(x))
-                .collect();
-            squashed_sample_f32(
-                &row[..ACTIONS],
-                &log_std,
-                &eps,
-                &mut out[a * ACTIONS..(a + 1) * ACTIONS],
-            );
-        }
+        squash_heads(
+            &heads,
+            first,
+            seed,
+            tick,
+            |x| self.actor.squash_log_std(x),
+            &mut out,
+        );
         out
     }
 

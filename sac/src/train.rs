@@ -39,7 +39,8 @@
 
 use crate::config::SacConfig;
 use crate::model::{
-    Actor, EntropyCoef, SacNetConfig, TwinQ, squashed_sample, squashed_sample_f32, twin_q_target,
+    Actor, EntropyCoef, SacNetConfig, TwinQ, squash_heads, squashed_sample, squashed_sample_f32,
+    twin_q_target,
 };
 use crate::replay::{Batch, Replay, next_history};
 use burn::module::{ModuleMapper, ModuleVisitor, Param};
@@ -402,20 +403,14 @@ impl SacLearner {
     /// `tanh(μ + σ·ε)` for the actor's output `[n, 6]` (mean, raw log-std),
     /// the noise of agent `a` keyed by `(seed, first + a, tick)`.
     fn squash(&self, out: &[f32], actions: &mut [f32], seed: u64, tick: u64) {
-        for (a, row) in out.chunks_exact(2 * ACTIONS).enumerate() {
-            let mut noise = Stream::new(seed, Purpose::Exploration, (self.first + a) as u64, tick);
-            let eps = [noise.normal(), noise.normal(), noise.normal()];
-            let log_std: Vec<f32> = row[ACTIONS..]
-                .iter()
-                .map(|&x| self.actor.squash_log_std(x))
-                .collect();
-            squashed_sample_f32(
-                &row[..ACTIONS],
-                &log_std,
-                &eps,
-                &mut actions[a * ACTIONS..(a + 1) * ACTIONS],
-            );
-        }
+        squash_heads(
+            out,
+            self.first,
+            seed,
+            tick,
+            |x| self.actor.squash_log_std(x),
+            actions,
+        );
     }
 
     /// Act on the batch's observations and, when training, store the row.
