@@ -38,6 +38,8 @@ pub enum Command {
     Train(TrainCmd),
     /// Pretrain a species in its default scene, then transfer-learn into each of its scenes
     Pipeline(PipelineArgs),
+    /// Reproduce the thesis' claims (§4.5): train, evaluate, judge each claim, write a report
+    Reproduce(commands::reproduce::ReproduceArgs),
     /// Export a trained policy to ONNX (Unity ML-Agents' interface)
     Export(ExportArgs),
     /// Compare runs (e.g. PPO against SAC): learning curves, reward terms, and a table of evaluations
@@ -169,6 +171,10 @@ pub struct TrainOptions {
     /// No progress bar and no progress lines
     #[arg(long)]
     pub quiet: bool,
+    /// Budgets by species, `[pretraining, transfer]`, replacing the training
+    /// config's (`reproduce`'s profiles); not a command-line option.
+    #[arg(skip)]
+    pub budgets: std::collections::BTreeMap<String, [u64; 2]>,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -359,6 +365,7 @@ pub fn run() -> Result<()> {
         Some(Command::Eval(a)) => commands::eval::run(&dirs, &a),
         Some(Command::Train(a)) => commands::train::run(&dirs, &a).map(|_| ()),
         Some(Command::Pipeline(a)) => commands::pipeline::run(&dirs, &a),
+        Some(Command::Reproduce(a)) => commands::reproduce::run(&dirs, &a),
         Some(Command::Export(a)) => commands::export::run(&a),
         Some(Command::Compare(a)) => commands::compare::run(&dirs, &a),
         Some(Command::Bench {

@@ -7,6 +7,7 @@ pub mod export;
 pub mod pipeline;
 pub mod render;
 pub mod replay;
+pub mod reproduce;
 pub mod scenes;
 pub mod sensor_view;
 pub mod simulate;
@@ -157,6 +158,7 @@ pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
             backend: deepfoids_learn::Backend::Flex,
             eval_seconds: q.eval_seconds,
             quiet: false,
+            budgets: Default::default(),
         },
     };
     let t = train::run(dirs, &args)?;

@@ -129,10 +129,18 @@ pub fn train_scene(
     resume: bool,
     opts: &TrainOptions,
 ) -> Result<Trained> {
-    let (ppo, sac) = match opts.algo {
+    let (mut ppo, mut sac) = match opts.algo {
         Algo::Ppo => (Some(PpoConfig::load(dirs)?), None),
         Algo::Sac => (None, Some(SacConfig::load(dirs)?)),
     };
+    for (species, b) in &opts.budgets {
+        if let Some(c) = ppo.as_mut() {
+            c.budgets.insert(species.clone(), *b);
+        }
+        if let Some(c) = sac.as_mut() {
+            c.budgets.insert(species.clone(), *b);
+        }
+    }
     // Each behaviour's own budget (ML-Agents' max_steps is per behaviour).
     let mut budgets = toml::Table::new();
     for b in &scene.behaviours {
