@@ -90,7 +90,7 @@ fn parse_threads(s: &str) -> Result<usize, String> {
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`, `foids`, `foids_table1` (Table 1 as published), `boids`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `random`, `foids`, `foids_table1` (Table 1 as published), `boids`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "random")]
     pub policy: String,
     #[command(flatten)]
@@ -122,7 +122,7 @@ fn parse_backend(s: &str) -> Result<deepfoids_learn::Backend, String> {
 pub struct EvalArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[command(flatten)]
@@ -187,8 +187,9 @@ pub struct TrainCmd {
     pub phase: Phase,
     /// Start from the weights of these runs (transfer learning; comma-separated
     /// or repeated, e.g. one per species): each behaviour takes the weights of
-    /// a behaviour of the same name, else of the same species; steps start at 0
-    #[arg(long, value_name = "RUN", value_delimiter = ',')]
+    /// a behaviour of the same name, else of the same species; steps start at 0;
+    /// `pretrained:<species>` names a shipped policy
+    #[arg(long, value_name = "RUN", value_delimiter = ',', value_parser = crate::pretrained::parse_run)]
     pub init_from: Vec<PathBuf>,
     /// Agent decisions to train, per behaviour (each counts its own, as ML-Agents'
     /// max_steps) [default: the thesis' budget for its species and phase]
@@ -225,8 +226,8 @@ pub struct ExportArgs {
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
-    /// Run folders (two or more)
-    #[arg(value_name = "RUN", required = true, num_args = 2..)]
+    /// Run folders (two or more); `pretrained:<species>` names a shipped policy
+    #[arg(value_name = "RUN", required = true, num_args = 2.., value_parser = crate::pretrained::parse_run)]
     pub runs: Vec<PathBuf>,
     /// Scene to evaluate every run in [default: the first run's]
     #[arg(long, value_name = "ID|PATH")]

@@ -8,4 +8,5 @@ pub mod clip;
 pub mod commands;
 pub mod io;
 pub mod plot;
+pub mod pretrained;
 pub mod report;

@@ -40,6 +40,16 @@ pub fn make_policy(
     env: &Env,
     opts: &PolicyArgs,
 ) -> Result<Box<dyn Policy>> {
+    let resolved;
+    let name = if name.starts_with(crate::pretrained::PREFIX) {
+        resolved = crate::pretrained::resolve(name)
+            .map_err(anyhow::Error::msg)?
+            .display()
+            .to_string();
+        resolved.as_str()
+    } else {
+        name
+    };
     let path = std::path::Path::new(name);
     match name {
         "random" => Ok(Box::new(RandomPolicy { seed })),
@@ -66,7 +76,7 @@ pub fn make_policy(
             "policy `{other}` does not exist (a run folder or a .onnx file was expected there)"
         ),
         other => bail!(
-            "unknown policy `{other}`; allowed: random, foids, foids_table1, boids, a run folder (runs/<id>) or a .onnx file"
+            "unknown policy `{other}`; allowed: random, foids, foids_table1, boids, pretrained:<species> (a shipped policy), a run folder (runs/<id>) or a .onnx file"
         ),
     }
 }

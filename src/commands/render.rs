@@ -35,7 +35,7 @@ use std::time::Instant;
 pub struct RenderArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `foids`, `boids`, `random`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[command(flatten)]

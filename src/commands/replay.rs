@@ -37,7 +37,7 @@ pub struct ReplayArgs {
     /// Reward weights of this phase (the reward terms shown)
     #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
     pub phase: Phase,
-    /// Who acts: `foids`, `boids`, `random`, a run folder (`runs/<id>`) or an exported `.onnx` file
+    /// Who acts: `foids`, `boids`, `random`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[command(flatten)]

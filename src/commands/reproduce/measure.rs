@@ -12,6 +12,10 @@ use deepfoids_env::{ConfigDirs, Env, Phase};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// Environment seed of evaluation seed `e` of training seed `t`:
+/// `ENV_SEED_BASE + 1000·e + t` (away from the training seeds' streams).
+pub const ENV_SEED_BASE: u64 = 2_000_000;
+
 /// Seconds between two points of the stored P/M series.
 const SERIES_STEP: f64 = 0.5;
 
@@ -264,7 +268,7 @@ fn stamp(dir: &Path) -> u64 {
         .map_or(0, |d| d.as_secs())
 }
 
-fn measure_one(
+pub fn measure_one(
     dirs: &ConfigDirs,
     profile: &Profile,
     out: &Path,
@@ -297,8 +301,7 @@ fn measure_one(
         return Ok((m, eval_dir));
     }
     let scene = super::load_scene(dirs, scene_id, phase)?;
-    // Evaluation seeds of their own, away from the training seeds' streams.
-    let env_seed = 2_000_000 + 1000 * es + ts;
+    let env_seed = ENV_SEED_BASE + 1000 * es + ts;
     let mut env = Env::new(scene, env_seed);
     let mut pol: Box<dyn deepfoids_env::Policy> = match &policy_path {
         Some(d) => Box::new(super::super::load_trained(d, None, &env, true, ts)?),

@@ -17,6 +17,7 @@
 mod claims;
 mod figures;
 mod measure;
+pub mod ship;
 
 use super::load_scene;
 use super::train::train_scene;
@@ -52,6 +53,10 @@ pub struct ReproduceArgs {
     /// Scale the evaluation's simulated seconds by this factor (tests)
     #[arg(long, default_value_t = 1.0, hide = true)]
     pub eval_scale: f64,
+    /// After the report, copy each species' transferred default policy with a
+    /// model card into this folder (`policies` ships them with the repository)
+    #[arg(long, value_name = "DIR")]
+    pub ship: Option<PathBuf>,
     /// No progress bars or progress lines while training
     #[arg(long)]
     pub quiet: bool,
@@ -281,7 +286,12 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
     profile.warmup *= args.eval_scale;
     profile.seconds *= args.eval_scale;
     let chosen = claims::select(&args.only)?;
-    let stages = stages_for(&chosen);
+    // Shipping needs every species' transferred default policy.
+    let mut needs = chosen.clone();
+    if args.ship.is_some() && !needs.iter().any(|c| c.id == "circle") {
+        needs.extend(claims::select(&["circle".to_string()])?);
+    }
+    let stages = stages_for(&needs);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let _lock = crate::io::lock_dir(&args.out)?;
@@ -324,6 +334,9 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
         "\nwrote {}",
         args.out.join("report").join("REPORT.md").display()
     );
+    if let Some(dest) = &args.ship {
+        ship::ship(dirs, &profile, &args.out, &measured, dest)?;
+    }
     Ok(())
 }
 

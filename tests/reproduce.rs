@@ -1,0 +1,213 @@
+//! `deepfoids reproduce` on a tiny budget: one claim end to end (stages,
+//! measurements, verdict, report), resumption, shipping policies with model
+//! cards, and `pretrained:<species>` in the commands that take a policy.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn deepfoids(args: &[&str], policies: Option<&Path>) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_deepfoids"));
+    c.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    if let Some(p) = policies {
+        c.env("DEEPFOIDS_POLICIES", p);
+    }
+    c.output().expect("the binary runs")
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("deepfoids-repro-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// `seabream-cage` on the quick profile × 0.02 (4,000-step pretraining, two
+/// 4,000-step transfers of 10 seabream) with 0.6 + 1.8 s evaluations, then
+/// shipped; a second invocation reuses every stage and measurement.
+#[test]
+fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
+    let out = temp("tiny");
+    let ship = out.join("policies");
+    let args = [
+        "reproduce",
+        "--profile",
+        "quick",
+        "--only",
+        "seabream-cage",
+        "--budget-scale",
+        "0.02",
+        "--eval-scale",
+        "0.06",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let o = deepfoids(&args, None);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(t.contains("| seabream-cage |"), "{t}");
+    // Its two transfer stages and the pretraining they start from, at the
+    // quick budgets × 0.02: 200,000 × 0.02 = 4,000 agent steps each.
+    for stage in [
+        "pretrain-seabream",
+        "transfer-seabream_default",
+        "transfer-seabream_cube5",
+    ] {
+        let state = std::fs::read_to_string(out.join("s0").join(stage).join("final/state.json"))
+            .unwrap_or_else(|e| panic!("{stage}: {e}"));
+        assert!(state.contains("\"budget\": 4000"), "{stage}: {state}");
+    }
+    assert!(
+        !out.join("s0/pretrain-coho").exists(),
+        "only what the claim needs"
+    );
+    let report = out.join("report");
+    let md = std::fs::read_to_string(report.join("REPORT.md")).unwrap();
+    assert!(md.contains("## seabream-cage"), "{md}");
+    assert!(
+        md.contains("Criterion: 3 m cube: cage rotation ≥ 0.5"),
+        "{md}"
+    );
+    let verdict = ["**holds**", "**does not hold**"];
+    assert!(verdict.iter().any(|v| md.contains(v)), "{md}");
+    assert!(md.contains("trajectories-transfer-seabream_cube5-seabream_cube5.png"));
+    assert!(
+        report
+            .join("trajectories-transfer-seabream_cube5-seabream_cube5.png")
+            .is_file()
+    );
+    // Two evaluation seeds (quick) × two policies, one row each.
+    let meas = std::fs::read_to_string(report.join("measurements.csv")).unwrap();
+    assert_eq!(meas.lines().count(), 1 + 4, "{meas}");
+    assert!(
+        meas.lines().skip(1).all(|l| l.contains("seabream")),
+        "{meas}"
+    );
+    let claims = std::fs::read_to_string(report.join("claims.csv")).unwrap();
+    assert!(
+        claims.lines().nth(1).unwrap().starts_with("seabream-cage,"),
+        "{claims}"
+    );
+    let stages = std::fs::read_to_string(report.join("stages.csv")).unwrap();
+    assert_eq!(stages.lines().count(), 1 + 3, "{stages}");
+
+    // Again, shipping: nothing is trained or evaluated twice, the three
+    // species' default stages are added for the policies.
+    let mut again: Vec<&str> = args.to_vec();
+    again.extend(["--ship", ship.to_str().unwrap()]);
+    let o = deepfoids(&again, None);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(
+        t.contains("transfer-seabream_cube5: finished before, reusing it"),
+        "{t}"
+    );
+    assert!(
+        !t.contains("measuring transfer-seabream_cube5"),
+        "cached:\n{t}"
+    );
+    for sp in ["coho", "yellowtail", "seabream"] {
+        assert!(ship.join(sp).join("final/state.json").is_file(), "{sp}");
+        assert!(
+            ship.join(sp)
+                .join(format!("final/{sp}_regular.onnx"))
+                .is_file()
+        );
+        assert!(ship.join(sp).join("card.toml").is_file());
+        let card = std::fs::read_to_string(ship.join(format!("{sp}.md"))).unwrap();
+        assert!(card.contains(&format!("`pretrained:{sp}`")), "{card}");
+        assert!(card.contains("boundary collisions per fish-hour"), "{card}");
+    }
+
+    // The shipped policy by name, in eval, and as --init-from.
+    let ev = out.join("eval");
+    let o = deepfoids(
+        &[
+            "eval",
+            "--scene",
+            "seabream_default",
+            "--policy",
+            "pretrained:seabream",
+            "--seconds",
+            "1",
+            "--out",
+            ev.to_str().unwrap(),
+        ],
+        Some(&ship),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(ev.join("summary.json").is_file());
+    let o = deepfoids(
+        &[
+            "train",
+            "--scene",
+            "seabream_cube5",
+            "--phase",
+            "transfer",
+            "--init-from",
+            "pretrained:seabream",
+            "--steps",
+            "1000",
+            "--eval-seconds",
+            "0",
+            "--quiet",
+            "--runs-dir",
+            out.to_str().unwrap(),
+            "--run-id",
+            "from-shipped",
+        ],
+        Some(&ship),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let cfg = std::fs::read_to_string(out.join("from-shipped/config.toml")).unwrap();
+    assert!(
+        cfg.contains(&ship.join("seabream").display().to_string()),
+        "{cfg}"
+    );
+    // An unknown species names what there is.
+    let o = deepfoids(
+        &[
+            "eval",
+            "--scene",
+            "seabream_default",
+            "--policy",
+            "pretrained:tuna",
+        ],
+        Some(&ship),
+    );
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(
+        t.contains("no shipped policy `tuna`")
+            && t.contains("pretrained:coho, pretrained:seabream, pretrained:yellowtail"),
+        "{t}"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn an_unknown_claim_is_refused_with_the_list() {
+    let out = temp("unknown");
+    let o = deepfoids(
+        &[
+            "reproduce",
+            "--only",
+            "learn,fly",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        None,
+    );
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(t.contains("unknown claim `fly`"), "{t}");
+    assert!(t.contains("learn, transfer, circle, seabream-cage, seabream-50, layers, species, density, chase, ppo-sac, boids"), "{t}");
+    assert!(!out.exists(), "nothing written for a refused command");
+}
