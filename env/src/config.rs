@@ -573,6 +573,11 @@ pub struct RewardWeights {
     pub w_bd: f32,
     /// Neighbour interaction weight `w_ND`. 1.5.
     pub w_nd: f32,
+    /// `r_ND` sums over at most this many nearest neighbours within `d_sense`
+    /// (0: every one, as SPEC §6 writes it). A topological cap keeps the
+    /// reward's scale independent of density (issue 14; README deviations).
+    #[serde(default)]
+    pub neighbour_cap: u32,
     /// Rotation penalty weight `w_r` (per degree). Pretrain 0.001, transfer 0.5.
     pub w_r: f32,
     /// Speed-change penalty weight `w_s` (per BL/s). Pretrain 5, transfer 10.

@@ -249,6 +249,7 @@ impl Model {
             sensor: &self.sensor,
             grid,
             cage_height: self.cage.height,
+            neighbour_cap: self.scene.rewards.neighbour_cap as usize,
         }
     }
 }

@@ -417,6 +417,14 @@ pub(crate) fn rewards(r: &RewardWeights, path: &Path) -> Result<(), ConfigError>
     for (field, v) in fields {
         check(path, field, v, WEIGHT, "")?;
     }
+    let cap = crate::sensing::MAX_NEIGHBOUR_CAP;
+    check_count(
+        path,
+        "neighbour_cap",
+        r.neighbour_cap as u64,
+        cap as u64,
+        "neighbours (0: every neighbour)",
+    )?;
     Ok(())
 }
 

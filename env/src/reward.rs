@@ -202,6 +202,7 @@ mod tests {
             w_nc: 0.5,
             w_bd: 2.0,
             w_nd: 1.5,
+            neighbour_cap: 0,
             w_r: 0.001,
             w_s: 5.0,
             pitch_penalty: 10.0,

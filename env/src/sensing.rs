@@ -45,7 +45,52 @@ pub(crate) struct Sensing<'a> {
     /// Neighbours, rebuilt with the visual radii before the pass.
     pub grid: &'a SpatialGrid,
     pub cage_height: f32,
+    /// `r_ND` over at most this many nearest neighbours (0: all).
+    pub neighbour_cap: usize,
 }
+
+/// The `K` nearest neighbours' alignment terms seen so far, by distance.
+struct Nearest<const K: usize> {
+    d: [f32; K],
+    a: [f32; K],
+    len: usize,
+}
+
+impl<const K: usize> Nearest<K> {
+    fn new() -> Self {
+        Self {
+            d: [f32::INFINITY; K],
+            a: [0.0; K],
+            len: 0,
+        }
+    }
+
+    /// Keep `(d, a)` if it is among the `cap` (≤ K) nearest so far.
+    fn offer(&mut self, cap: usize, d: f32, a: f32) {
+        let cap = cap.min(K);
+        if self.len == cap && d >= self.d[cap - 1] {
+            return;
+        }
+        let mut k = self.len.min(cap - 1);
+        if self.len < cap {
+            self.len += 1;
+        }
+        while k > 0 && self.d[k - 1] > d {
+            self.d[k] = self.d[k - 1];
+            self.a[k] = self.a[k - 1];
+            k -= 1;
+        }
+        self.d[k] = d;
+        self.a[k] = a;
+    }
+
+    fn sum(&self) -> f32 {
+        self.a[..self.len].iter().sum()
+    }
+}
+
+/// Largest `neighbour_cap` the sensing pass keeps on the stack.
+pub const MAX_NEIGHBOUR_CAP: usize = 32;
 
 impl Sensing<'_> {
     /// Fill `frame` with what fish `i` sees and sum up its surroundings.
@@ -81,6 +126,8 @@ impl Sensing<'_> {
         let (mut front_d, mut sub_d) = (f32::INFINITY, f32::INFINITY);
         let range2 = range * range;
         let mut spheres = SphereBatch::new();
+        let cap = self.neighbour_cap;
+        let mut nearest = Nearest::<MAX_NEIGHBOUR_CAP>::new();
         self.grid.for_each_candidate(p, range, |j, q| {
             let rel = q.truncate() - p;
             let d2 = rel.length_squared();
@@ -88,7 +135,12 @@ impl Sensing<'_> {
                 return;
             }
             let d = d2.sqrt();
-            seen.alignment_sum += (90.0 - fast_acos_deg(f.dot(w.heading[j]))) / 90.0;
+            let align = (90.0 - fast_acos_deg(f.dot(w.heading[j]))) / 90.0;
+            if cap == 0 {
+                seen.alignment_sum += align;
+            } else {
+                nearest.offer(cap, d, align);
+            }
             if rel.dot(f) > 0.0 && d < front_d {
                 front_d = d;
                 seen.nearest_front = Some(j as u32);
@@ -113,6 +165,9 @@ impl Sensing<'_> {
             }
         });
         frame.add_spheres(self.sensor, &spheres);
+        if cap > 0 {
+            seen.alignment_sum = nearest.sum();
+        }
         seen
     }
 

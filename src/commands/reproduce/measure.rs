@@ -428,7 +428,7 @@ impl Acc {
                     let c = (rz * h.x - rx * h.z) / (r * hn);
                     rot += c as f64;
                 }
-                if tick % 5 == 0 {
+                if tick.is_multiple_of(5) {
                     self.depths[b].push(-p.y);
                 }
             }
