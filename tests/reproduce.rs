@@ -171,6 +171,44 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         cfg.contains(&ship.join("seabream").display().to_string()),
         "{cfg}"
     );
+    // simulate, and compare against the run it started.
+    let sim = out.join("sim");
+    let o = deepfoids(
+        &[
+            "simulate",
+            "--scene",
+            "seabream_cube5",
+            "--policy",
+            "pretrained:seabream",
+            "--seconds",
+            "1",
+            "--out",
+            sim.to_str().unwrap(),
+        ],
+        Some(&ship),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(sim.join("trajectories.csv").is_file());
+    let cmp = out.join("cmp");
+    let from = out.join("from-shipped");
+    let o = deepfoids(
+        &[
+            "compare",
+            "pretrained:seabream",
+            from.to_str().unwrap(),
+            "--scene",
+            "seabream_cube5",
+            "--seconds",
+            "1",
+            "--seeds",
+            "1",
+            "--out",
+            cmp.to_str().unwrap(),
+        ],
+        Some(&ship),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(cmp.join("compare.md").is_file());
     // An unknown species names what there is.
     let o = deepfoids(
         &[
