@@ -376,16 +376,48 @@ fn judge_circle(m: &Measured) -> Verdict {
     }
 }
 
+fn speed_of(x: &Measurement) -> f64 {
+    x.summary.mean_speed_bl as f64
+}
+
+fn rel_of(x: &Measurement) -> f64 {
+    x.axis_distance_rel as f64
+}
+
+fn rot_of(x: &Measurement) -> f64 {
+    x.cage_rotation as f64
+}
+
+fn m_of(x: &Measurement) -> f64 {
+    x.summary.m_mean as f64
+}
+
+/// `label` → `a / b`: one measure of two evaluations side by side.
+fn both(
+    m: &Measured,
+    (pa, sa): (&str, &str),
+    (pb, sb): (&str, &str),
+    label: &str,
+    f: fn(&Measurement) -> f64,
+) -> (String, String) {
+    (
+        label.into(),
+        format!(
+            "{} / {}",
+            m.stat(pa, sa, f).fmt(2),
+            m.stat(pb, sb, f).fmt(2)
+        ),
+    )
+}
+
 fn judge_seabream_cage(m: &Measured) -> Verdict {
     let (a, b) = (
         ("transfer-seabream_default", "seabream_default"),
         ("transfer-seabream_cube5", "seabream_cube5"),
     );
-    let speed = |(p, s): (&str, &str)| m.stat(p, s, |x| x.summary.mean_speed_bl as f64);
-    let rel = |(p, s): (&str, &str)| m.stat(p, s, |x| x.axis_distance_rel as f64);
-    let rot = |(p, s): (&str, &str)| m.stat(p, s, |x| x.cage_rotation as f64);
-    let mm = |(p, s): (&str, &str)| m.stat(p, s, |x| x.summary.m_mean as f64);
-    let abs = |(p, s): (&str, &str)| m.stat(p, s, |x| x.axis_distance as f64);
+    let speed = |(p, s): (&str, &str)| m.stat(p, s, speed_of);
+    let rel = |(p, s): (&str, &str)| m.stat(p, s, rel_of);
+    let rot = |(p, s): (&str, &str)| m.stat(p, s, rot_of);
     let (s3, s5) = (speed(a), speed(b));
     if s3.n == 0 || s5.n == 0 {
         return missing("both seabream cages");
@@ -402,26 +434,13 @@ fn judge_seabream_cage(m: &Measured) -> Verdict {
             rot(a).fmt(2)
         ),
         values: vec![
-            (
-                "speed BL/s, 3 m / 5 m".into(),
-                format!("{} / {}", s3.fmt(2), s5.fmt(2)),
-            ),
-            (
-                "axis distance m, 3 m / 5 m".into(),
-                format!("{} / {}", abs(a).fmt(2), abs(b).fmt(2)),
-            ),
-            (
-                "rel. axis distance, 3 m / 5 m".into(),
-                format!("{} / {}", rel(a).fmt(2), rel(b).fmt(2)),
-            ),
-            (
-                "cage rotation, 3 m / 5 m".into(),
-                format!("{} / {}", rot(a).fmt(2), rot(b).fmt(2)),
-            ),
-            (
-                "M, 3 m / 5 m".into(),
-                format!("{} / {}", mm(a).fmt(2), mm(b).fmt(2)),
-            ),
+            both(m, a, b, "speed BL/s, 3 m / 5 m", speed_of),
+            both(m, a, b, "axis distance m, 3 m / 5 m", |x| {
+                x.axis_distance as f64
+            }),
+            both(m, a, b, "rel. axis distance, 3 m / 5 m", rel_of),
+            both(m, a, b, "cage rotation, 3 m / 5 m", rot_of),
+            both(m, a, b, "M, 3 m / 5 m", m_of),
         ],
     }
 }
@@ -432,9 +451,8 @@ fn judge_seabream_50(m: &Measured) -> Verdict {
         ("transfer-seabream_50", "seabream_50"),
     );
     let nn = |(p, s): (&str, &str)| m.stat(p, s, |x| x.summary.nn_mean_bl as f64);
-    let rel = |(p, s): (&str, &str)| m.stat(p, s, |x| x.axis_distance_rel as f64);
-    let rot = |(p, s): (&str, &str)| m.stat(p, s, |x| x.cage_rotation as f64);
-    let mm = |(p, s): (&str, &str)| m.stat(p, s, |x| x.summary.m_mean as f64);
+    let rel = |(p, s): (&str, &str)| m.stat(p, s, rel_of);
+    let rot = |(p, s): (&str, &str)| m.stat(p, s, rot_of);
     let (n10, n50) = (nn(a), nn(b));
     if n10.n == 0 || n50.n == 0 {
         return missing("seabream_50 and seabream_default");
@@ -451,22 +469,18 @@ fn judge_seabream_50(m: &Measured) -> Verdict {
             rel(b).fmt(2)
         ),
         values: vec![
-            (
-                "NN distance BL, 10 / 50 fish".into(),
-                format!("{} / {}", n10.fmt(2), n50.fmt(2)),
+            both(m, a, b, "NN distance BL, 10 / 50 fish", |x| {
+                x.summary.nn_mean_bl as f64
+            }),
+            both(m, a, b, "cage rotation, 10 / 50", rot_of),
+            both(
+                m,
+                a,
+                b,
+                "rel. axis distance (circle radius), 10 / 50",
+                rel_of,
             ),
-            (
-                "cage rotation, 10 / 50".into(),
-                format!("{} / {}", rot(a).fmt(2), rot(b).fmt(2)),
-            ),
-            (
-                "rel. axis distance (circle radius), 10 / 50".into(),
-                format!("{} / {}", rel(a).fmt(2), rel(b).fmt(2)),
-            ),
-            (
-                "M, 10 / 50".into(),
-                format!("{} / {}", mm(a).fmt(2), mm(b).fmt(2)),
-            ),
+            both(m, a, b, "M, 10 / 50", m_of),
         ],
     }
 }

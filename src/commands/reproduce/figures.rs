@@ -71,6 +71,7 @@ fn panel<DB: DrawingBackend>(
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc(y_desc)
+        .x_label_formatter(&|x| si(*x))
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 14))
         .light_line_style(WHITE.mix(0.0))
@@ -101,6 +102,17 @@ fn panel<DB: DrawingBackend>(
         .draw()
         .map_err(pe)?;
     Ok(())
+}
+
+/// `1.5M`, `250k` for large numbers; one decimal otherwise.
+fn si(x: f64) -> String {
+    if x.abs() >= 1e6 {
+        format!("{:.1}M", x / 1e6)
+    } else if x.abs() >= 1e4 {
+        format!("{:.0}k", x / 1e3)
+    } else {
+        format!("{x:.1}")
+    }
 }
 
 /// Exponential moving average (the smoothing of Fig. 4.7), weight `a` on the past.
