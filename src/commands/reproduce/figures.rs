@@ -34,6 +34,7 @@ fn panel<DB: DrawingBackend>(
     y_desc: &str,
     lines: &[Line],
     y_range: Option<(f64, f64)>,
+    legend: SeriesLabelPosition,
 ) -> Result<()> {
     let pts = lines.iter().flat_map(|l| l.points.iter());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
@@ -98,7 +99,7 @@ fn panel<DB: DrawingBackend>(
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK.mix(0.3))
         .label_font((FONT, 13))
-        .position(SeriesLabelPosition::LowerRight)
+        .position(legend)
         .draw()
         .map_err(pe)?;
     Ok(())
@@ -192,6 +193,7 @@ pub fn write_report(
                         "reward per decision",
                         &stage_lines(m, stage, "PPO", BLUE, false),
                         None,
+                        SeriesLabelPosition::LowerRight,
                     )?;
                 }
             }
@@ -223,6 +225,7 @@ pub fn write_report(
                 "reward per decision",
                 &lines,
                 None,
+                SeriesLabelPosition::LowerRight,
             )
         })?;
         figures.push(("transfer", "transfer.png".into()));
@@ -251,6 +254,7 @@ pub fn write_report(
                     "reward per decision",
                     &lines,
                     None,
+                    SeriesLabelPosition::LowerRight,
                 )?;
             }
             Ok(())
@@ -286,7 +290,21 @@ pub fn write_report(
                         points: series("transfer-density_sparse", "density_sparse", k),
                     },
                 ];
-                panel(&cells[k], name, "time (s)", name, &lines, Some((0.0, 1.0)))?;
+                // M stays low where P is high: the key goes where the lines are not.
+                let key = if k == 0 {
+                    SeriesLabelPosition::MiddleRight
+                } else {
+                    SeriesLabelPosition::UpperRight
+                };
+                panel(
+                    &cells[k],
+                    name,
+                    "time (s)",
+                    name,
+                    &lines,
+                    Some((0.0, 1.0)),
+                    key,
+                )?;
             }
             Ok(())
         })?;
@@ -344,9 +362,10 @@ pub fn write_report(
                 root,
                 &format!("{scene}: depth distribution per behaviour"),
                 "share of fish-time (%)",
-                "height above the bottom… depth below the surface (−m)",
+                "− depth below the surface (m)",
                 &lines,
                 None,
+                SeriesLabelPosition::LowerRight,
             )
         })?;
         figures.push((id, file.into()));

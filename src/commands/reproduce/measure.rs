@@ -596,7 +596,16 @@ fn read_curves(path: &Path, stage: &str, ts: u64) -> Result<Vec<Curve>> {
         }
     }
     for c in &mut curves {
+        // Stable: of several values logged at one step, the last is kept.
         c.points.sort_by_key(|p| p.0);
+        let mut kept: Vec<(u64, f64)> = Vec::with_capacity(c.points.len());
+        for &p in &c.points {
+            match kept.last_mut() {
+                Some(last) if last.0 == p.0 => *last = p,
+                _ => kept.push(p),
+            }
+        }
+        c.points = kept;
     }
     Ok(curves)
 }
