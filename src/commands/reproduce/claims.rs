@@ -62,6 +62,18 @@ const DEFAULTS: [(&str, &str); 3] = [
     ("seabream", "seabream_default"),
 ];
 
+/// The transferred default policies, and their evaluations in their scenes.
+const DEFAULT_STAGES: [&str; 3] = [
+    "transfer-coho_default",
+    "transfer-yellowtail_default",
+    "transfer-seabream_default",
+];
+const DEFAULT_EVALS: [(&str, &str); 3] = [
+    ("transfer-coho_default", "coho_default"),
+    ("transfer-yellowtail_default", "yellowtail_default"),
+    ("transfer-seabream_default", "seabream_default"),
+];
+
 /// Pretraining and transfer learning of the default scenes.
 const LEARN_STAGES: [&str; 6] = [
     "pretrain-coho",
@@ -96,16 +108,8 @@ pub const CLAIMS: &[Claim] = &[
         id: "circle",
         thesis: "Trained schools in the default scenes form circling patterns (§4.5.3).",
         criterion: "For each species' transferred default policy in its default scene, cage rotation ≥ 0.5 (M and state shares reported beside it).",
-        stages: &[
-            "transfer-coho_default",
-            "transfer-yellowtail_default",
-            "transfer-seabream_default",
-        ],
-        evals: &[
-            ("transfer-coho_default", "coho_default"),
-            ("transfer-yellowtail_default", "yellowtail_default"),
-            ("transfer-seabream_default", "seabream_default"),
-        ],
+        stages: &DEFAULT_STAGES,
+        evals: &DEFAULT_EVALS,
         judge: judge_circle,
     },
     Claim {
@@ -161,16 +165,8 @@ pub const CLAIMS: &[Claim] = &[
         id: "chase",
         thesis: "Dominant fish chase subordinates until contact or until the target is out of sight (Fig. 4.13).",
         criterion: "Pooled over the three default scenes: chases start (> 0 per fish-hour) and ≥ 50 % of the ended chases end by contact or loss of sight (not by the timeout or a boundary collision).",
-        stages: &[
-            "transfer-coho_default",
-            "transfer-yellowtail_default",
-            "transfer-seabream_default",
-        ],
-        evals: &[
-            ("transfer-coho_default", "coho_default"),
-            ("transfer-yellowtail_default", "yellowtail_default"),
-            ("transfer-seabream_default", "seabream_default"),
-        ],
+        stages: &DEFAULT_STAGES,
+        evals: &DEFAULT_EVALS,
         judge: judge_chase,
     },
     Claim {

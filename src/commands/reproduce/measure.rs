@@ -234,11 +234,6 @@ pub fn measure_all(
         }
     }
     let mut curves = Vec::new();
-    let mut stages: Vec<String> = claims
-        .iter()
-        .flat_map(|c| c.stages.iter().map(|s| s.to_string()))
-        .collect();
-    stages.dedup();
     for &ts in &profile.seeds {
         for stage in super::stages_for(claims) {
             let path = out
@@ -368,7 +363,6 @@ pub fn measure_one(
 /// Sums collected at every recorded tick.
 struct Acc {
     centre: (f32, f32),
-    n_beh: usize,
     ranges: Vec<std::ops::Range<usize>>,
     axis: Vec<f64>,
     rot: Vec<f64>,
@@ -394,7 +388,6 @@ impl Acc {
             .expect("a chase term");
         Self {
             centre: (0.5 * (lo.x + hi.x), 0.5 * (lo.z + hi.z)),
-            n_beh: nb,
             ranges,
             axis: vec![0.0; nb],
             rot: vec![0.0; nb],
@@ -413,7 +406,7 @@ impl Acc {
     fn observe(&mut self, env: &Env, tick: u64) {
         let w = env.world();
         let mut school = 0.0f64;
-        for b in 0..self.n_beh {
+        for b in 0..self.ranges.len() {
             let mut rot = 0.0f64;
             for i in self.ranges[b].clone() {
                 let p = w.position[i];
@@ -467,18 +460,15 @@ impl Acc {
                     let bonus = 0.5 * env.scene().rewards.catch_bonus;
                     let (r, term_i) = term(i).unwrap_or((0.0, false));
                     let term_t = term(t).map(|x| x.1).unwrap_or(false);
-                    let behind = (w.position[t] - w.position[i]).dot(w.heading[i]) < 0.0;
                     if r >= bonus {
                         self.chases.contact += 1;
                     } else if term_i || term_t {
                         self.chases.boundary += 1;
                     } else if out.time - since >= self.timeout - 0.05 {
                         self.chases.timeout += 1;
-                    } else if behind {
-                        self.chases.lost_sight += 1;
                     } else {
-                        // Ended at a decision with the target just in front:
-                        // the target turned behind between decisions.
+                        // The target got behind the aggressor (at the decision;
+                        // it may be in front again by the tick's end).
                         self.chases.lost_sight += 1;
                     }
                 }
@@ -563,7 +553,7 @@ impl Acc {
 }
 
 /// The curves of `CURVE_TAGS` in a stage's `scalars.csv` (none if missing).
-fn read_curves(path: &Path, stage: &str, ts: u64) -> Result<Vec<Curve>> {
+pub fn read_curves(path: &Path, stage: &str, ts: u64) -> Result<Vec<Curve>> {
     let Ok(text) = std::fs::read_to_string(path) else {
         return Ok(Vec::new());
     };

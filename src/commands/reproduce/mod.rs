@@ -335,7 +335,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
         args.out.join("report").join("REPORT.md").display()
     );
     if let Some(dest) = &args.ship {
-        ship::ship(dirs, &profile, &args.out, &measured, dest)?;
+        ship::ship(dirs, &profile, &args.out, dest)?;
     }
     Ok(())
 }

@@ -4,7 +4,7 @@
 //! `DIR/<species>.md` for people, `DIR/<species>/card.toml` for the test that
 //! re-evaluates the policy and checks the card's figures.
 
-use super::measure::{Measured, Stat, measure_one};
+use super::measure::{Stat, measure_one};
 use super::{Profile, Stage};
 use anyhow::{Context, Result, bail};
 use deepfoids_env::ConfigDirs;
@@ -65,13 +65,7 @@ impl Card {
 }
 
 /// Measure (cached) and ship every species' default policy.
-pub fn ship(
-    dirs: &ConfigDirs,
-    profile: &Profile,
-    out: &Path,
-    measured: &Measured,
-    dest: &Path,
-) -> Result<()> {
+pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Result<()> {
     let ts = profile.seeds[0];
     std::fs::create_dir_all(dest).with_context(|| format!("cannot create {}", dest.display()))?;
     for sp in SPECIES {
@@ -135,15 +129,15 @@ pub fn ship(
         ] {
             figures.insert(k.into(), fig(stat(&share(st)), 0.15));
         }
-        let final_train_reward = measured
-            .curves(&stage.name, super::measure::RPD_TAG)
-            .first()
-            .map(|c| {
-                let k = (c.points.len() / 10).max(1);
-                let tail = &c.points[c.points.len() - k..];
-                tail.iter().map(|p| p.1).sum::<f64>() / tail.len() as f64
-            })
-            .unwrap_or_else(|| read_final_reward(&run.join("scalars.csv")).unwrap_or(f64::NAN));
+        // Mean of the last tenth (rounded down, at least one) of the transfer curve.
+        let final_train_reward =
+            super::measure::read_curves(&run.join("scalars.csv"), &stage.name, ts)?
+                .iter()
+                .find(|c| c.tag == super::measure::RPD_TAG)
+                .map_or(f64::NAN, |c| {
+                    let tail = &c.points[c.points.len() - (c.points.len() / 10).max(1)..];
+                    Stat::of(tail.iter().map(|p| p.1)).mean
+                });
         let card = Card {
             species: sp.into(),
             scene: scene.clone(),
@@ -190,17 +184,6 @@ pub fn ship(
         eprintln!("shipped {sp} to {}", target.display());
     }
     Ok(())
-}
-
-fn read_final_reward(path: &Path) -> Option<f64> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let v: Vec<f64> = text
-        .lines()
-        .filter(|l| l.contains(",Environment/Reward per Decision,"))
-        .filter_map(|l| l.rsplit(',').next()?.parse().ok())
-        .collect();
-    let k = (v.len() / 10).max(1);
-    (!v.is_empty()).then(|| v[v.len() - k..].iter().sum::<f64>() / k as f64)
 }
 
 fn card_markdown(c: &Card) -> String {
