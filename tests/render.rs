@@ -112,10 +112,19 @@ fn render_writes_a_yolo_and_coco_dataset() {
     assert_eq!(yolo_lines, yolo_lines_in_frames);
     assert_eq!(coco["annotations"].as_array().unwrap().len(), yolo_lines);
     let yaml = std::fs::read_to_string(out.join("data.yaml")).unwrap();
+    // One clip: nothing held out, and the file says so.
     assert!(
-        yaml.contains("train: images") && yaml.contains("0: seabream"),
+        yaml.contains("train: train.txt")
+            && yaml.contains("val: train.txt")
+            && yaml.contains("0: seabream"),
         "{yaml}"
     );
+    let train = std::fs::read_to_string(out.join("train.txt")).unwrap();
+    assert_eq!(train.lines().count(), 4);
+    assert!(train.starts_with("./images/frame_000000.jpg"), "{train}");
+    let counts = std::fs::read_to_string(out.join("counts.csv")).unwrap();
+    assert_eq!(counts.lines().count(), 5, "{counts}");
+    assert!(coco["images"][0]["lens"]["model"] == "pinhole");
 }
 
 /// An interrupted render continues: a frame removed afterwards is rendered
@@ -155,6 +164,34 @@ fn interrupted_render_continues_identically() {
     let clips = scene["clips"].as_array().unwrap();
     assert_eq!(clips.len(), 2);
     assert_ne!(clips[0]["water"], clips[1]["water"]);
+    // Split by clip: clip 0 trains, clip 1 (frames 2 and 3) is held out, in
+    // data.yaml's lists and in the per-split COCO files alike.
+    let yaml = std::fs::read_to_string(out.join("data.yaml")).unwrap();
+    assert!(yaml.contains("val: val.txt"), "{yaml}");
+    let val = std::fs::read_to_string(out.join("val.txt")).unwrap();
+    assert_eq!(
+        val,
+        "./images/frame_000002.jpg\n./images/frame_000003.jpg\n"
+    );
+    let coco_val = json(&out.join("annotations_val.json"));
+    let coco_train = json(&out.join("annotations_train.json"));
+    let clips_of = |c: &serde_json::Value| -> Vec<u64> {
+        c["images"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|i| i["clip"].as_u64().unwrap())
+            .collect()
+    };
+    assert_eq!(clips_of(&coco_val), vec![1, 1]);
+    assert_eq!(clips_of(&coco_train), vec![0, 0]);
+    assert_eq!(coco_val["info"]["split"], "val");
+    let all = json(&out.join("annotations.json"));
+    assert_eq!(
+        coco_val["annotations"].as_array().unwrap().len()
+            + coco_train["annotations"].as_array().unwrap().len(),
+        all["annotations"].as_array().unwrap().len()
+    );
     let o = render(&out, &["--randomize", "--clip-frames", "2", "--seed", "4"]);
     assert!(!o.status.success());
     assert!(text(&o).contains("other arguments"), "{}", text(&o));

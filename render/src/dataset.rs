@@ -5,8 +5,11 @@
 //! every label (`frames/`: both 2D boxes, 3D box corners in world and camera
 //! coordinates, visibility, truncation, species, size class, RLE
 //! segmentation, the frame's visible-fish count and conditions). At the end,
-//! `annotations.json` (COCO) and `data.yaml` are assembled from the frame
-//! files; `scene.json` holds every parameter.
+//! `annotations.json` (COCO, every frame, each image with its `split`),
+//! `annotations_train.json` / `annotations_val.json`, `train.txt` / `val.txt`
+//! (the split by clip, never by frame), `data.yaml` naming them, and
+//! `counts.csv` (visible fish per frame) are assembled from the frame files;
+//! `scene.json` holds every parameter.
 //!
 //! Every file is written atomically, the frame JSON last: a frame whose JSON
 //! exists is complete, which is how an interrupted render continues.
@@ -90,6 +93,47 @@ pub struct FrameMeta {
     pub clock_hours: f64,
     pub sun_elevation_deg: f32,
     pub camera: crate::camera::Camera,
+    /// `train` or `val`: the split of the frame's clip (never split inside a clip).
+    pub split: Split,
+    /// Times the clip's water was redrawn because nothing was visible (0 at first).
+    pub water_attempt: u32,
+}
+
+/// Which split a clip belongs to. Neighbouring frames of a clip are nearly
+/// identical, so the split is by clip, never by frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Split {
+    Train,
+    Val,
+}
+
+impl Split {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::Train => "train",
+            Self::Val => "val",
+        }
+    }
+
+    /// The split of clip `clip` of `clips` with a share `val_fraction` of
+    /// clips held out: clip `c` is a validation clip when `(c + 1)·f` passes
+    /// a whole number (so they are spread evenly: every 5th for 0.2), and the
+    /// last clip is one if that picked none of two or more. A single clip is
+    /// always `train` (there is nothing to hold out without leaking frames).
+    pub fn of_clip(clip: usize, clips: usize, val_fraction: f64) -> Self {
+        if clips < 2 || val_fraction <= 0.0 {
+            return Self::Train;
+        }
+        let f = val_fraction.min(1.0);
+        let val = |c: usize| ((c + 1) as f64 * f).floor() > (c as f64 * f).floor();
+        let any = (0..clips).any(val);
+        if val(clip) || (!any && clip + 1 == clips) {
+            Self::Val
+        } else {
+            Self::Train
+        }
+    }
 }
 
 impl Dataset {
@@ -138,6 +182,22 @@ impl Dataset {
             && self.image_path(i).is_file()
             && self.label_path(i).is_file()
             && self.mask_path(i).is_file()
+    }
+
+    /// Frame `i`'s visible-fish count and its clip's water attempt, from its JSON.
+    pub fn frame_meta(&self, i: usize) -> Result<(usize, u32), DatasetError> {
+        let p = self.frame_json_path(i);
+        let v: Value =
+            serde_json::from_slice(&std::fs::read(&p).map_err(io(&p))?).map_err(|e| {
+                DatasetError::Invalid {
+                    path: p.clone(),
+                    message: e.to_string(),
+                }
+            })?;
+        Ok((
+            v["visible_fish"].as_u64().unwrap_or(0) as usize,
+            v["meta"]["water_attempt"].as_u64().unwrap_or(0) as u32,
+        ))
     }
 
     /// Write `scene.json`, or check that an existing one describes the same
@@ -254,6 +314,7 @@ impl Dataset {
     pub fn finish(&self, n: usize) -> Result<usize, DatasetError> {
         let mut images = Vec::with_capacity(n);
         let mut anns = Vec::new();
+        let mut counts = String::from("frame,clip,split,visible_fish,in_view_fish\n");
         for i in 0..n {
             let p = self.frame_json_path(i);
             let v: Value =
@@ -263,6 +324,11 @@ impl Dataset {
                         message: e.to_string(),
                     }
                 })?;
+            let split = v["meta"]["split"].as_str().unwrap_or("train").to_string();
+            counts.push_str(&format!(
+                "{i},{},{split},{},{}\n",
+                v["meta"]["clip"], v["visible_fish"], v["in_view_fish"]
+            ));
             images.push(json!({
                 "id": i + 1,
                 "file_name": v["file_name"],
@@ -271,6 +337,8 @@ impl Dataset {
                 "visible_fish": v["visible_fish"],
                 "clip": v["meta"]["clip"],
                 "time": v["meta"]["time"],
+                "split": split,
+                "lens": v["meta"]["camera"]["lens"],
             }));
             for f in v["fish"].as_array().into_iter().flatten() {
                 let l = &f["label"];
@@ -311,19 +379,62 @@ impl Dataset {
             .map(|(k, c)| json!({"id": k + 1, "name": c, "supercategory": "fish"}))
             .collect();
         let n_anns = anns.len();
-        let coco = json!({
-            "info": {"description": "DeepFoids synthetic fish dataset", "version": "1.0"},
-            "licenses": [],
-            "images": images,
-            "annotations": anns,
-            "categories": categories,
-        });
-        let p = self.dir.join("annotations.json");
-        write_atomic(&p, serde_json::to_string(&coco).unwrap().as_bytes()).map_err(io(&p))?;
+        let coco = |images: Vec<Value>, anns: Vec<Value>, split: &str| {
+            json!({
+                "info": {"description": format!("DeepFoids synthetic fish dataset ({split})"), "version": "1.0", "split": split},
+                "licenses": [],
+                "images": images,
+                "annotations": anns,
+                "categories": categories,
+            })
+        };
+        let write_json = |name: &str, v: &Value| {
+            let p = self.dir.join(name);
+            write_atomic(&p, serde_json::to_string(v).unwrap().as_bytes()).map_err(io(&p))
+        };
+        // One COCO file per split (image and annotation ids kept), and all.
+        let mut lists = String::new();
+        let mut val_frames = 0;
+        for split in ["train", "val"] {
+            let ids: std::collections::HashSet<u64> = images
+                .iter()
+                .filter(|im| im["split"] == split)
+                .filter_map(|im| im["id"].as_u64())
+                .collect();
+            let im: Vec<Value> = images
+                .iter()
+                .filter(|im| im["split"] == split)
+                .cloned()
+                .collect();
+            let list: String = im
+                .iter()
+                .map(|im| format!("./{}\n", im["file_name"].as_str().unwrap_or_default()))
+                .collect();
+            let p = self.dir.join(format!("{split}.txt"));
+            write_atomic(&p, list.as_bytes()).map_err(io(&p))?;
+            lists.push_str(&format!("# {split}: {} frames\n", im.len()));
+            if split == "val" {
+                val_frames = im.len();
+            }
+            let an: Vec<Value> = anns
+                .iter()
+                .filter(|a| a["image_id"].as_u64().is_some_and(|i| ids.contains(&i)))
+                .cloned()
+                .collect();
+            write_json(&format!("annotations_{split}.json"), &coco(im, an, split))?;
+        }
+        write_json("annotations.json", &coco(images, anns, "all"))?;
+        let p = self.dir.join("counts.csv");
+        write_atomic(&p, counts.as_bytes()).map_err(io(&p))?;
         let abs = std::fs::canonicalize(&self.dir).unwrap_or_else(|_| self.dir.clone());
         let mut yaml = format!(
-            "# Ultralytics YOLO dataset written by `deepfoids render`.\npath: {}\ntrain: images\nval: images\nnames:\n",
-            abs.display()
+            "# Ultralytics YOLO dataset written by `deepfoids render`, split by clip\n# (never by frame: neighbouring frames are nearly identical).\n{lists}path: {}\ntrain: train.txt\n{}names:\n",
+            abs.display(),
+            if val_frames > 0 {
+                "val: val.txt\n"
+            } else {
+                "# One clip: nothing can be held out without leaking frames (render\n# several clips, e.g. with --randomize, for a split).\nval: train.txt\n"
+            }
         );
         for (k, c) in self.classes.iter().enumerate() {
             yaml.push_str(&format!("  {k}: {c}\n"));

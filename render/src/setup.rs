@@ -170,6 +170,14 @@ pub struct RandomRanges {
     /// median is 1.7 /m (10–90 %: 0.4–4.7 /m; coastal cages see 0.5–3 /m) and
     /// the murky end of every range is still drawn.
     pub water_skew: f32,
+    /// Beam extinction at 550 nm (1/m) a drawn water must have, else it is
+    /// drawn again: 0.13–3.0, i.e. half the clearest and twice the murkiest
+    /// site attenuation of the thesis' Table 4.3 (Nishiki 0.26 /m, Onmaehama
+    /// 1.5 /m). Without it the skewed draws reach 4–7 /m, where no fish is
+    /// visible beyond a metre (issue 22: a whole fisheye clip with 0 labels).
+    pub extinction_550: [f32; 2],
+    /// Draws of the water before giving up on [`RandomRanges::extinction_550`]; 1000.
+    pub water_tries: u32,
     /// Share of the scene's fish that are simulated (per group, at least 1 fish).
     pub fish_fraction: [f32; 2],
     /// Camera position jitter (± m per axis) and angle jitter (± degrees).
@@ -187,6 +195,8 @@ impl Default for RandomRanges {
             small_particles: [0.0, 4.0],
             large_particles: [0.0, 4.0],
             water_skew: 4.0,
+            extinction_550: [0.13, 3.0],
+            water_tries: 1000,
             fish_fraction: [0.2, 1.0],
             jitter_m: 0.1,
             jitter_deg: 5.0,
@@ -237,6 +247,10 @@ pub struct ClipParams {
     /// Local clock time at the clip's start (hours).
     pub hours: f64,
     pub water: WaterParams,
+    /// How many times the water was drawn again because no fish was visible
+    /// in the whole clip (`render` without `--allow-empty`); 0 at first.
+    #[serde(default)]
+    pub water_attempt: u32,
     /// Share of the scene's fish simulated.
     pub fish_fraction: f32,
     pub camera: CameraPlacement,
@@ -257,6 +271,7 @@ impl ClipParams {
             day: c.day,
             hours: c.start_hours as f64,
             water: WaterParams::default(),
+            water_attempt: 0,
             fish_fraction: 1.0,
             camera: CameraPlacement {
                 kind,
@@ -267,14 +282,15 @@ impl ClipParams {
         }
     }
 
-    /// Draw a clip's date, time, water, fish count and camera jitter.
+    /// Draw a clip's date, time, water, fish count and camera jitter. The
+    /// error says why no water fits [`RandomRanges::extinction_550`].
     pub fn random(
         scene: &Scene,
         clip: usize,
         seed: u64,
         kind: CameraKind,
         r: &RandomRanges,
-    ) -> Self {
+    ) -> Result<Self, String> {
         let mut p = Self::from_scene(scene, clip, seed, kind);
         let mut g = Rng::new(seed, clip as u64);
         let u = |g: &mut Rng, [a, b]: [f32; 2]| g.range(a, b);
@@ -289,14 +305,7 @@ impl ClipParams {
         p.day = left;
         let [h0, h1] = daylight(scene, year, month, left, r);
         p.hours = g.range(h0, h1) as f64;
-        let skewed =
-            |g: &mut Rng, [a, b]: [f32; 2]| a + (b - a) * g.range(0.0, 1.0).powf(r.water_skew);
-        p.water = WaterParams {
-            chlorophyll: skewed(&mut g, r.chlorophyll),
-            sediment: skewed(&mut g, r.sediment),
-            small_particles: skewed(&mut g, r.small_particles),
-            large_particles: skewed(&mut g, r.large_particles),
-        };
+        p.water = draw_water(&mut g, r)?;
         p.fish_fraction = u(&mut g, r.fish_fraction);
         let cage = scene.cage();
         // Wall and depth only place side cameras.
@@ -311,7 +320,20 @@ impl ClipParams {
             pitch_deg: g.range(-d, d),
             roll_deg: g.range(-d, d),
         };
-        p
+        Ok(p)
+    }
+
+    /// The clip with its water drawn anew for the `attempt`-th time (its own
+    /// random stream, so attempt `k` is the same whatever came before).
+    pub fn redraw_water(&self, seed: u64, attempt: u32, r: &RandomRanges) -> Result<Self, String> {
+        let mut g = Rng::new(
+            seed ^ (attempt as u64).wrapping_mul(0xA076_1D64_78BD_642F),
+            self.clip as u64 ^ 0x57A7_E000,
+        );
+        let mut p = self.clone();
+        p.water = draw_water(&mut g, r)?;
+        p.water_attempt = attempt;
+        Ok(p)
     }
 
     /// The scene as this clip simulates it: its date and start time, and the
@@ -343,6 +365,29 @@ impl ClipParams {
             water: Water::new(self.water, scattering),
         }
     }
+}
+
+/// Chlorophyll, sediment and particles drawn as `lo + (hi − lo)·u^skew`,
+/// again until the extinction at 550 nm lies in `r.extinction_550`.
+fn draw_water(g: &mut Rng, r: &RandomRanges) -> Result<WaterParams, String> {
+    let skewed = |g: &mut Rng, [a, b]: [f32; 2]| a + (b - a) * g.range(0.0, 1.0).powf(r.water_skew);
+    let [lo, hi] = r.extinction_550;
+    for _ in 0..r.water_tries.max(1) {
+        let w = WaterParams {
+            chlorophyll: skewed(g, r.chlorophyll),
+            sediment: skewed(g, r.sediment),
+            small_particles: skewed(g, r.small_particles),
+            large_particles: skewed(g, r.large_particles),
+        };
+        let c = Water::new(w, true).c.y;
+        if (lo..=hi).contains(&c) {
+            return Ok(w);
+        }
+    }
+    Err(format!(
+        "no water of the random ranges has an extinction at 550 nm within [{lo}, {hi}] /m in {} draws; widen the ranges",
+        r.water_tries
+    ))
 }
 
 /// The environment seed of clip `clip`.

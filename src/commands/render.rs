@@ -25,7 +25,8 @@ use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
 use deepfoids_render::dataset::ImageFormat;
 use deepfoids_render::setup::{TailPhases, place_camera, poses, species_meshes};
 use deepfoids_render::{
-    CameraKind, ClipParams, Dataset, FrameMeta, RandomRanges, RenderConfig, Renderer,
+    CameraKind, ClipParams, Dataset, FishPose, FrameMeta, RandomRanges, RenderConfig, Renderer,
+    Split,
 };
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -61,6 +62,17 @@ pub struct RenderArgs {
     /// Frames per clip with --randomize (without it all frames form one clip)
     #[arg(long, default_value_t = 50)]
     pub clip_frames: usize,
+    /// Share of the clips held out for validation (whole clips, spread evenly: 0.2 = every 5th);
+    /// named in data.yaml (train.txt, val.txt) and annotations_{train,val}.json
+    #[arg(long, default_value_t = 0.2)]
+    pub val_fraction: f64,
+    /// With --randomize: keep a clip in which no fish is visible in any frame (by default its
+    /// water is drawn again, up to --water-tries times, then the render stops with an error)
+    #[arg(long)]
+    pub allow_empty: bool,
+    /// With --randomize: water draws per clip before an empty clip is an error
+    #[arg(long, default_value_t = 5)]
+    pub water_tries: u32,
     /// Simulated seconds before a clip's first frame (the school settles)
     #[arg(long, default_value_t = 10.0)]
     pub warmup: f64,
@@ -187,16 +199,25 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
     } else {
         args.frames
     };
+    if !(0.0..=1.0).contains(&args.val_fraction) {
+        bail!(
+            "--val-fraction must be in [0, 1] (a share of the clips), got {}",
+            args.val_fraction
+        );
+    }
+    count_within("--water-tries", args.water_tries as u64, [1, 100], "draws")?;
     let ranges = RandomRanges::default();
-    let clips: Vec<ClipParams> = (0..args.frames.div_ceil(clip_frames))
+    let n_clips = args.frames.div_ceil(clip_frames);
+    let clips: Vec<ClipParams> = (0..n_clips)
         .map(|c| {
             if args.randomize {
                 ClipParams::random(&scene, c, seed, args.camera, &ranges)
+                    .map_err(|e| anyhow::anyhow!("clip {c}: {e}"))
             } else {
-                ClipParams::from_scene(&scene, c, seed, args.camera)
+                Ok(ClipParams::from_scene(&scene, c, seed, args.camera))
             }
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let _lock = crate::io::lock_dir(&args.out)?;
     let dataset = Dataset::new(
         &args.out,
@@ -214,6 +235,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         "camera": args.camera.as_str(), "width": args.width, "height": args.height,
         "randomize": args.randomize, "clip_frames": clip_frames, "warmup": args.warmup,
         "seed": seed, "format": args.format.ext(), "phase": args.scene.phase.as_str(),
+        "val_fraction": args.val_fraction, "allow_empty": args.allow_empty, "water_tries": args.water_tries,
         "stochastic": args.policy_args.stochastic, "checkpoint": args.policy_args.checkpoint,
     });
     let optics: Vec<_> = clips
@@ -248,34 +270,94 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         if range.clone().all(|i| dataset.frame_done(i)) {
             continue;
         }
+        let split = Split::of_clip(clip.clip, n_clips, args.val_fraction);
         let cs = clip.apply(&scene);
         let mut sim = Clip::new(dirs, cs.clone(), clip.seed, &args.policy, &args.policy_args)?;
         let per_frame = ticks(1.0 / args.fps, &sim.env).max(1);
         sim.step(ticks(args.warmup, &sim.env))?;
         let camera = place_camera(&cs.cage(), &clip.camera, args.width, args.height);
         let behaviour_of = sim.env.world().behaviour.clone();
-        for (k, i) in range.enumerate() {
+        // The whole clip is simulated first (poses are small); the water does
+        // not move the fish, so a redrawn water only renders again.
+        let mut steps: Vec<(f64, f64, Vec<FishPose>)> = Vec::with_capacity(range.len());
+        for k in 0..range.len() {
             if k > 0 {
                 sim.step(per_frame)?;
             }
-            if dataset.frame_done(i) {
-                continue;
-            }
-            let hours = sim.env.clock_hours();
-            let cond = clip.conditions(&cs, hours, true);
-            let frame = renderer.render(&poses(sim.env.world(), &sim.phases), &camera, &cond);
-            let meta = FrameMeta {
-                clip: clip.clip,
-                time: sim.env.output().time,
-                clock_hours: hours,
-                sun_elevation_deg: cond.light.sun_elevation_deg,
-                camera,
+            steps.push((
+                sim.env.clock_hours(),
+                sim.env.output().time,
+                poses(sim.env.world(), &sim.phases),
+            ));
+        }
+        // A partly finished clip continues with the water its frames were drawn with.
+        let mut attempt = range
+            .clone()
+            .find(|&i| dataset.frame_done(i))
+            .and_then(|i| dataset.frame_meta(i).ok())
+            .map_or(0, |m| m.1);
+        let mut first_pass = true;
+        loop {
+            let water = if attempt == 0 {
+                clip.clone()
+            } else {
+                clip.redraw_water(seed, attempt, &ranges)
+                    .map_err(|e| anyhow::anyhow!("clip {}: {e}", clip.clip))?
             };
-            dataset
-                .write_frame(i, &frame, &behaviour_of, &meta)
-                .with_context(|| format!("writing frame {i}"))?;
-            rendered += 1;
-            bar.inc(1);
+            let mut visible = 0usize;
+            for (i, (hours, time, fish)) in range.clone().zip(&steps) {
+                if dataset.frame_done(i)
+                    && let Ok((v, a)) = dataset.frame_meta(i)
+                    && a == attempt
+                {
+                    visible += v;
+                    continue;
+                }
+                let cond = water.conditions(&cs, *hours, true);
+                let frame = renderer.render(fish, &camera, &cond);
+                visible += frame.visible_count();
+                let meta = FrameMeta {
+                    clip: clip.clip,
+                    time: *time,
+                    clock_hours: *hours,
+                    sun_elevation_deg: cond.light.sun_elevation_deg,
+                    camera,
+                    split,
+                    water_attempt: attempt,
+                };
+                dataset
+                    .write_frame(i, &frame, &behaviour_of, &meta)
+                    .with_context(|| format!("writing frame {i}"))?;
+                if first_pass {
+                    rendered += 1;
+                    bar.inc(1);
+                }
+            }
+            if visible > 0 || !args.randomize || args.allow_empty {
+                break;
+            }
+            first_pass = false;
+            attempt += 1;
+            if attempt >= args.water_tries {
+                let w = deepfoids_render::Water::new(water.water, true);
+                bail!(
+                    "clip {} of {}: no fish visible in any of its frames with {} water draws (last: extinction {:.2} /m at 550 nm, {:02}:{:02} local time, sun {:.0}° high); pass --allow-empty to keep empty clips, or more --water-tries",
+                    clip.clip,
+                    scene.id,
+                    args.water_tries,
+                    w.c.y,
+                    clip.hours as u32,
+                    (clip.hours.fract() * 60.0) as u32,
+                    deepfoids_env::sun::SunPlace::position(
+                        &deepfoids_render::setup::site_place(&cs),
+                        clip.year,
+                        clip.month,
+                        clip.day,
+                        clip.hours
+                    )
+                    .elevation_deg
+                );
+            }
         }
     }
     bar.finish_and_clear();
@@ -376,6 +458,8 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
             clock_hours: hours,
             sun_elevation_deg: cond.light.sun_elevation_deg,
             camera,
+            split: Split::Train,
+            water_attempt: 0,
         };
         dataset.write_frame(i, &frame, &behaviour_of, &meta)?;
         t_write += t.elapsed().as_secs_f64();
