@@ -46,6 +46,12 @@ pub enum Command {
     Compare(CompareArgs),
     /// Render a labelled image dataset (YOLO, COCO, masks) of a scene driven by a policy
     Render(commands::render::RenderArgs),
+    /// Count the fish in a cage video or folder of frames (thesis §4.4): the estimate is the max over frames
+    Count(commands::count::CountArgs),
+    /// Train the one-class fish detector `count` uses from `render` folders, exported to ONNX
+    TrainDetector(commands::train_detector::TrainDetectorArgs),
+    /// Fig. 4.12: black-pixel density in 16 annuli of fisheye frames, folder A against folder B
+    ImageStats(commands::image_stats::ImageStatsArgs),
     /// Watch a school: one self-contained HTML replay (3D, scrub, follow a fish, P/M), and GIF clips
     Replay(commands::replay::ReplayArgs),
     /// Benchmarks
@@ -293,6 +299,8 @@ pub enum BenchCommand {
     Policy(BenchPolicyArgs),
     /// Dataset rendering speed: frames per second with all labels
     Render(commands::render::BenchRenderArgs),
+    /// Counting speed: frames per second of `count` on a video or folder of frames
+    Count(commands::count::BenchCountArgs),
 }
 
 #[derive(Args, Debug)]
@@ -380,6 +388,12 @@ pub fn run() -> Result<()> {
         }) => commands::bench::policy(&a),
         Some(Command::Render(a)) => commands::render::run(&dirs, &a),
         Some(Command::Replay(a)) => commands::replay::run(&dirs, &a),
+        Some(Command::Count(a)) => commands::count::run(&a),
+        Some(Command::TrainDetector(a)) => commands::train_detector::run(&a),
+        Some(Command::ImageStats(a)) => commands::image_stats::run(&a),
+        Some(Command::Bench {
+            what: BenchCommand::Count(a),
+        }) => commands::count::bench(&a),
         Some(Command::Bench {
             what: BenchCommand::Render(a),
         }) => commands::render::bench(&dirs, &a),

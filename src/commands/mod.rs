@@ -2,8 +2,10 @@
 
 pub mod bench;
 pub mod compare;
+pub mod count;
 pub mod eval;
 pub mod export;
+pub mod image_stats;
 pub mod pipeline;
 pub mod render;
 pub mod replay;
@@ -12,6 +14,7 @@ pub mod scenes;
 pub mod sensor_view;
 pub mod simulate;
 pub mod train;
+pub mod train_detector;
 
 use crate::cli::PolicyArgs;
 use anyhow::{Result, bail};

@@ -1,0 +1,571 @@
+//! `train-detector`: our one-class fish detector ([`crate::model`]) trained
+//! from scratch on `render` output, exported to ONNX, scored on the val split.
+//!
+//! Choices, each with its reason:
+//! - **Burn**, as the policy trainers: no Python or torch on the machine, no
+//!   weights downloaded, Apache/MIT all the way (Ultralytics is AGPL).
+//! - **The counting pipeline's own pre-processing on the training images**:
+//!   the same median blur and, for fisheye frames, the same perspective view
+//!   (`count`'s defaults, recorded in the ONNX metadata). The boxes of a
+//!   corrected frame come from its instance mask seen through the same view
+//!   (exact, not a warped rectangle); only fish the renderer labels
+//!   detectable count.
+//! - **Split by clip**, as `render` writes it (`split` of each COCO image):
+//!   validation frames come from clips never trained on.
+//! - **Random crops** (256 px by default) with horizontal flips: the network
+//!   is fully convolutional, so crops train it for 416-px windows at a
+//!   quarter of the cost.
+//! - **CenterNet's losses**: penalty-reduced focal loss on a heatmap of
+//!   Gaussians (α = 2, β = 4; σ = max(0.5, 0.15·min(w, h)/8) cells) and L1 on
+//!   offsets and log sizes at the centre cells, both over the number of fish.
+//! - **Adam**, learning rate decayed linearly to a tenth.
+
+use crate::boxes::Detection;
+use crate::count::{CountConfig, Counter};
+use crate::detector::{Detector, to_chw};
+use crate::error::{CountError, Result};
+use crate::eval::average_precision;
+use crate::export::export_detector;
+use crate::frames::read_image;
+use crate::model::{DetectorNet, DetectorNetConfig, STRIDE};
+use crate::preprocess::{InputCamera, PerspectiveView, median_blur};
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::prelude::*;
+use burn::tensor::activation::log_sigmoid;
+use deepfoids_env::io::write_atomic;
+use image::RgbImage;
+use serde::Serialize;
+use serde_json::Value;
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Hyperparameters of `train-detector`; every one has its default.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrainConfig {
+    /// Optimiser steps; 3000.
+    pub steps: usize,
+    /// Stop earlier after this many minutes (0: no limit); 0.
+    pub minutes: f64,
+    /// Crops per step; 8.
+    pub batch: usize,
+    /// Side of the training crops (pixels, a multiple of 8); 256.
+    pub crop: u32,
+    /// Adam's first learning rate, decayed linearly to a tenth; 2e-3.
+    pub lr: f64,
+    /// Channels of the first layer; 16.
+    pub base: usize,
+    /// Seed of the crops, flips and weights; 0.
+    pub seed: u64,
+    /// Pre-processing shared with `count` (fisheye view, median, window).
+    #[serde(skip)]
+    pub count: CountConfig,
+    /// Use at most this many training frames (0: all); 0.
+    pub max_frames: usize,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            steps: 3000,
+            minutes: 0.0,
+            batch: 8,
+            crop: 256,
+            lr: 2e-3,
+            base: 16,
+            seed: 0,
+            count: CountConfig::default(),
+            max_frames: 0,
+        }
+    }
+}
+
+/// A pre-processed frame and its fish boxes (pixels of the processed image).
+#[derive(Clone, Debug)]
+pub struct Sample {
+    pub image: RgbImage,
+    pub boxes: Vec<Detection>,
+    pub clip: String,
+}
+
+/// The train and val samples of `render` folders.
+pub struct Data {
+    pub train: Vec<Sample>,
+    pub val: Vec<Sample>,
+}
+
+fn dataset_err(path: &Path, message: impl Into<String>) -> CountError {
+    CountError::Dataset {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// Read `render` folders (their `annotations.json`), pre-processing each
+/// frame as `count` would.
+pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Result<Data> {
+    let mut data = Data {
+        train: vec![],
+        val: vec![],
+    };
+    let mut views: HashMap<(u32, u32, u32), PerspectiveView> = HashMap::new();
+    for dir in dirs {
+        let ann = dir.join("annotations.json");
+        if !ann.is_file() {
+            return Err(dataset_err(
+                dir,
+                "no annotations.json: not a `deepfoids render` folder",
+            ));
+        }
+        let coco: Value =
+            serde_json::from_slice(&std::fs::read(&ann).map_err(CountError::io(&ann))?)
+                .map_err(|e| dataset_err(&ann, e.to_string()))?;
+        let mut by_image: HashMap<u64, Vec<&Value>> = HashMap::new();
+        for a in coco["annotations"].as_array().into_iter().flatten() {
+            by_image
+                .entry(a["image_id"].as_u64().unwrap_or(0))
+                .or_default()
+                .push(a);
+        }
+        for im in coco["images"].as_array().into_iter().flatten() {
+            let split = im["split"].as_str().unwrap_or("train");
+            if split == "train" && max_train > 0 && data.train.len() >= max_train {
+                continue;
+            }
+            let file = dir.join(im["file_name"].as_str().unwrap_or_default());
+            let anns = by_image
+                .get(&im["id"].as_u64().unwrap_or(0))
+                .cloned()
+                .unwrap_or_default();
+            let raw = median_blur(&read_image(&file)?, cfg.median);
+            let lens = &im["lens"];
+            let (image, boxes) = if lens["model"] == "fisheye" {
+                let theta_max = lens["theta_max"].as_f64().unwrap_or(0.0) as f32;
+                let fov = 2.0 * theta_max.to_degrees();
+                let (w, h) = raw.dimensions();
+                let view = views
+                    .entry((w, h, (fov * 100.0) as u32))
+                    .or_insert_with(|| {
+                        PerspectiveView::new(w, h, fov, cfg.view_fov_deg, cfg.view_size)
+                    });
+                let mask_file = dir.join(
+                    im["file_name"]
+                        .as_str()
+                        .unwrap_or_default()
+                        .replace("images/", "masks/")
+                        .rsplit_once('.')
+                        .map(|(s, _)| format!("{s}.png"))
+                        .unwrap_or_default(),
+                );
+                let mask = image::open(&mask_file)
+                    .map_err(|e| dataset_err(&mask_file, e.to_string()))?
+                    .into_luma16();
+                let ids: HashSet<u16> = anns
+                    .iter()
+                    .filter_map(|a| a["fish_id"].as_u64().map(|f| f as u16 + 1))
+                    .collect();
+                let seen = view.apply_mask(mask.as_raw());
+                (
+                    view.apply(&raw),
+                    boxes_of_mask(&seen, view.size, view.size, &ids),
+                )
+            } else {
+                let boxes = anns
+                    .iter()
+                    .filter_map(|a| {
+                        let b: Vec<f32> = a["bbox"]
+                            .as_array()?
+                            .iter()
+                            .filter_map(|x| x.as_f64().map(|v| v as f32))
+                            .collect();
+                        (b.len() == 4).then(|| Detection {
+                            x0: b[0],
+                            y0: b[1],
+                            x1: b[0] + b[2],
+                            y1: b[1] + b[3],
+                            score: 1.0,
+                        })
+                    })
+                    .collect();
+                (raw, boxes)
+            };
+            let boxes: Vec<Detection> = boxes
+                .into_iter()
+                .filter(|b| b.x1 - b.x0 >= 2.0 && b.y1 - b.y0 >= 2.0)
+                .collect();
+            let sample = Sample {
+                image,
+                boxes,
+                clip: format!("{}#{}", dir.display(), im["clip"]),
+            };
+            if split == "val" {
+                data.val.push(sample);
+            } else {
+                data.train.push(sample);
+            }
+        }
+    }
+    if data.train.is_empty() {
+        return Err(CountError::Dataset {
+            path: dirs.first().cloned().unwrap_or_default(),
+            message: "no training frames".into(),
+        });
+    }
+    Ok(data)
+}
+
+/// Boxes `[x0, y0, x1, y1)` of each id of `ids` in a `w × h` mask.
+pub fn boxes_of_mask(mask: &[u16], w: u32, h: u32, ids: &HashSet<u16>) -> Vec<Detection> {
+    let mut b: HashMap<u16, [u32; 4]> = HashMap::new();
+    for y in 0..h {
+        for x in 0..w {
+            let id = mask[(y * w + x) as usize];
+            if id == 0 || !ids.contains(&id) {
+                continue;
+            }
+            let e = b.entry(id).or_insert([x, y, x + 1, y + 1]);
+            e[0] = e[0].min(x);
+            e[1] = e[1].min(y);
+            e[2] = e[2].max(x + 1);
+            e[3] = e[3].max(y + 1);
+        }
+    }
+    let mut v: Vec<_> = b.into_iter().collect();
+    v.sort_by_key(|(id, _)| *id);
+    v.into_iter()
+        .map(|(_, [x0, y0, x1, y1])| Detection {
+            x0: x0 as f32,
+            y0: y0 as f32,
+            x1: x1 as f32,
+            y1: y1 as f32,
+            score: 1.0,
+        })
+        .collect()
+}
+
+/// SplitMix64 for crops and flips.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn below(&mut self, n: u64) -> u64 {
+        if n == 0 { 0 } else { self.next() % n }
+    }
+}
+
+/// Training targets of one crop (grid `g × g`): heatmap `[g²]`, boxes
+/// `[4·g²]`, centre mask `[4·g²]` (1 at the centre cells, in all 4 channels).
+pub fn targets(boxes: &[Detection], crop: u32) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    let g = (crop as usize) / STRIDE;
+    let s = STRIDE as f32;
+    let (mut heat, mut reg, mut mask) = (
+        vec![0f32; g * g],
+        vec![0f32; 4 * g * g],
+        vec![0f32; 4 * g * g],
+    );
+    for b in boxes {
+        let (cx, cy) = ((b.x0 + b.x1) / 2.0 / s, (b.y0 + b.y1) / 2.0 / s);
+        if !(cx >= 0.0 && cy >= 0.0 && cx < g as f32 && cy < g as f32) {
+            continue;
+        }
+        let (ix, iy) = (cx.floor() as usize, cy.floor() as usize);
+        let (bw, bh) = ((b.x1 - b.x0) / s, (b.y1 - b.y0) / s);
+        let sigma = (0.15 * bw.min(bh)).max(0.5);
+        let r = (3.0 * sigma).ceil() as i64;
+        for dy in -r..=r {
+            for dx in -r..=r {
+                let (x, y) = (ix as i64 + dx, iy as i64 + dy);
+                if x < 0 || y < 0 || x >= g as i64 || y >= g as i64 {
+                    continue;
+                }
+                let v = (-((dx * dx + dy * dy) as f32) / (2.0 * sigma * sigma)).exp();
+                let k = y as usize * g + x as usize;
+                heat[k] = heat[k].max(v);
+            }
+        }
+        let k = iy * g + ix;
+        let plane = g * g;
+        for (c, v) in [
+            cx - ix as f32,
+            cy - iy as f32,
+            bw.max(1e-3).ln(),
+            bh.max(1e-3).ln(),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            reg[c * plane + k] = v;
+            mask[c * plane + k] = 1.0;
+        }
+    }
+    (heat, reg, mask)
+}
+
+/// A random `crop × crop` piece of a sample (zero-padded), maybe mirrored,
+/// with the boxes whose centre it holds.
+fn random_crop(s: &Sample, crop: u32, rng: &mut Rng) -> (RgbImage, Vec<Detection>) {
+    let (w, h) = s.image.dimensions();
+    let x = rng.below(w.saturating_sub(crop) as u64 + 1) as u32;
+    let y = rng.below(h.saturating_sub(crop) as u64 + 1) as u32;
+    let mut img = crate::windows::crop(&s.image, crate::windows::Window { x, y }, crop);
+    let mut boxes: Vec<Detection> = s
+        .boxes
+        .iter()
+        .map(|b| b.scaled_shifted(1.0, -(x as f32), -(y as f32)))
+        .collect();
+    if rng.next() & 1 == 1 {
+        image::imageops::flip_horizontal_in_place(&mut img);
+        let c = crop as f32;
+        for b in &mut boxes {
+            (b.x0, b.x1) = (c - b.x1, c - b.x0);
+        }
+    }
+    (img, boxes)
+}
+
+/// CenterNet's loss of a batch: `(total, focal, box)`.
+pub fn loss(
+    heat_logits: Tensor<4>,
+    boxes: Tensor<4>,
+    heat_t: Tensor<4>,
+    box_t: Tensor<4>,
+    mask: Tensor<4>,
+) -> (Tensor<1>, Tensor<1>, Tensor<1>) {
+    let pos = heat_t.clone().greater_equal_elem(0.9999).float();
+    let n = pos.clone().sum().clamp_min(1.0);
+    let p = burn::tensor::activation::sigmoid(heat_logits.clone()).clamp(1e-4, 1.0 - 1e-4);
+    let log_p = log_sigmoid(heat_logits.clone());
+    let log_1p = log_sigmoid(heat_logits.neg());
+    let one_minus_p = p.clone().neg().add_scalar(1.0);
+    let pos_term = log_p * one_minus_p.clone().powf_scalar(2.0) * pos.clone();
+    let neg_w = heat_t.neg().add_scalar(1.0).powf_scalar(4.0) * pos.neg().add_scalar(1.0);
+    let neg_term = log_1p * p.powf_scalar(2.0) * neg_w;
+    let focal = (pos_term.sum() + neg_term.sum()).neg() / n.clone();
+    let l1 = ((boxes - box_t).abs() * mask).sum() / n;
+    (focal.clone() + l1.clone(), focal, l1)
+}
+
+/// What a training run reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub steps: usize,
+    pub seconds: f64,
+    pub train_frames: usize,
+    pub val_frames: usize,
+    pub train_fish: usize,
+    pub val_fish: usize,
+    /// Loss of the first step, and the smoothed loss at the end (EMA 0.95).
+    pub first_loss: f64,
+    pub final_loss: f64,
+    /// AP at IoU 0.5 on the val split through the exported ONNX (tract).
+    pub map50: Option<f64>,
+    /// Mean |detected − labelled| fish per val frame at the default confidence.
+    pub val_count_mae: Option<f64>,
+    pub val_count_truth_mean: Option<f64>,
+    pub parameters: usize,
+    pub onnx_bytes: usize,
+}
+
+/// Train on `data`, write `detector.onnx`, `model.bpk` and `report.json` to
+/// `out`; `log` sees progress lines.
+pub fn train(
+    data: &Data,
+    cfg: &TrainConfig,
+    out: &Path,
+    mut log: impl FnMut(&str),
+) -> Result<Report> {
+    if !cfg.crop.is_multiple_of(STRIDE as u32) || cfg.crop < 32 {
+        return Err(CountError::Value {
+            what: "--crop",
+            allowed: "a multiple of 8, at least 32",
+            value: cfg.crop.to_string(),
+        });
+    }
+    std::fs::create_dir_all(out).map_err(CountError::io(out))?;
+    let device = Device::flex();
+    device.seed(cfg.seed);
+    let dev = device.clone().autodiff();
+    let mut model: DetectorNet = DetectorNetConfig::new().with_base(cfg.base).init(&dev);
+    let mut optim = AdamConfig::new().init();
+    let mut rng = Rng(cfg.seed ^ 0xC0FF_EE00);
+    let start = Instant::now();
+    let (c, b) = (cfg.crop as usize, cfg.batch.max(1));
+    let g = c / STRIDE;
+    let (mut last, mut first) = (0.0, 0.0);
+    let mut steps = 0;
+    for step in 0..cfg.steps {
+        if cfg.minutes > 0.0 && start.elapsed().as_secs_f64() > cfg.minutes * 60.0 {
+            break;
+        }
+        let (mut x, mut ht, mut bt, mut mk) = (vec![], vec![], vec![], vec![]);
+        for _ in 0..b {
+            let s = &data.train[rng.below(data.train.len() as u64) as usize];
+            let (img, boxes) = random_crop(s, cfg.crop, &mut rng);
+            x.extend(to_chw(&img));
+            let (h, r, m) = targets(&boxes, cfg.crop);
+            ht.extend(h);
+            bt.extend(r);
+            mk.extend(m);
+        }
+        let t = |v: Vec<f32>, ch: usize, side: usize| {
+            Tensor::<4>::from_data(TensorData::new(v, [b, ch, side, side]), &dev)
+        };
+        let (heat, boxes) = model.forward(t(x, 3, c));
+        let (total, focal, l1) = loss(heat, boxes, t(ht, 1, g), t(bt, 4, g), t(mk, 4, g));
+        let value = total.clone().into_scalar::<f32>() as f64;
+        if !value.is_finite() {
+            return Err(CountError::Train(format!(
+                "the loss is {value} at step {step}"
+            )));
+        }
+        let grads = GradientsParams::from_grads(total.backward(), &model);
+        let lr = cfg.lr * (1.0 - 0.9 * step as f64 / cfg.steps.max(1) as f64);
+        model = optim.step(lr, model, grads);
+        if step == 0 {
+            first = value;
+        }
+        last = if step == 0 {
+            value
+        } else {
+            0.95 * last + 0.05 * value
+        };
+        steps = step + 1;
+        if step % 50 == 0 || step + 1 == cfg.steps {
+            log(&format!(
+                "step {step}: loss {value:.4} (focal {:.4}, box {:.4}), smoothed {last:.4}, lr {lr:.2e}, {:.0} s",
+                focal.into_scalar::<f32>(),
+                l1.into_scalar::<f32>(),
+                start.elapsed().as_secs_f64()
+            ));
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    model
+        .clone()
+        .save_file(out.join("model.bpk"))
+        .map_err(|e| {
+            CountError::Train(format!(
+                "cannot save {}: {e:?}",
+                out.join("model.bpk").display()
+            ))
+        })?;
+    let meta = vec![
+        (
+            "view_fov_deg".to_string(),
+            cfg.count.view_fov_deg.to_string(),
+        ),
+        ("view_size".to_string(), cfg.count.view_size.to_string()),
+        ("window".to_string(), cfg.count.window.to_string()),
+        ("median".to_string(), cfg.count.median.to_string()),
+        ("train_frames".to_string(), data.train.len().to_string()),
+        ("steps".to_string(), steps.to_string()),
+        ("seconds".to_string(), format!("{seconds:.0}")),
+    ];
+    let onnx = export_detector(&model, &meta);
+    let onnx_path = out.join("detector.onnx");
+    write_atomic(&onnx_path, &onnx).map_err(CountError::io(&onnx_path))?;
+    let parameters = model.num_params();
+    let (map50, mae, truth_mean) = if data.val.is_empty() {
+        log("no val frames: mAP50 not measured");
+        (None, None, None)
+    } else {
+        let ev = evaluate(&onnx_path, &data.val, &cfg.count)?;
+        log(&format!(
+            "val: mAP50 {:.3}, count error {:.2} fish per frame (labelled {:.1})",
+            ev.0, ev.1, ev.2
+        ));
+        (Some(ev.0), Some(ev.1), Some(ev.2))
+    };
+    let report = Report {
+        steps,
+        seconds,
+        train_frames: data.train.len(),
+        val_frames: data.val.len(),
+        train_fish: data.train.iter().map(|s| s.boxes.len()).sum(),
+        val_fish: data.val.iter().map(|s| s.boxes.len()).sum(),
+        first_loss: first,
+        final_loss: last,
+        map50,
+        val_count_mae: mae,
+        val_count_truth_mean: truth_mean,
+        parameters,
+        onnx_bytes: onnx.len(),
+    };
+    let p = out.join("report.json");
+    write_atomic(
+        &p,
+        serde_json::to_string_pretty(&serde_json::json!({"report": report, "config": cfg}))
+            .unwrap()
+            .as_bytes(),
+    )
+    .map_err(CountError::io(&p))?;
+    Ok(report)
+}
+
+/// `(mAP50, mean |count error|, mean labelled count)` of a detector on
+/// pre-processed samples, run as `count` runs it (windows, edge rule, NMS).
+/// AP ranks every detection above a low confidence (0.05); the count uses
+/// the configured one.
+pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<(f64, f64, f64)> {
+    let detector = Detector::load(onnx, cfg.window)?;
+    let low = CountConfig {
+        conf: 0.05,
+        camera: InputCamera::Pinhole,
+        ..cfg.clone()
+    };
+    let counter = Counter::new(low, detector)?;
+    let (mut dets, mut truth, mut err, mut tot) = (vec![], vec![], 0.0, 0.0);
+    for s in samples {
+        let (d, _) = counter.detect(&s.image)?;
+        let n = d.iter().filter(|x| x.score >= cfg.conf).count();
+        err += (n as f64 - s.boxes.len() as f64).abs();
+        tot += s.boxes.len() as f64;
+        dets.push(d);
+        truth.push(s.boxes.clone());
+    }
+    let k = samples.len().max(1) as f64;
+    Ok((average_precision(&dets, &truth, 0.5), err / k, tot / k))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One 16 × 8 fish centred at (20, 12) in a 32-px crop (grid 4 × 4):
+    /// centre cell (2, 1), offsets (0.5, 0.5), ln sizes (ln 2, 0); the
+    /// heatmap is 1 there and σ = 0.5 cell: e^(−2) at the side neighbours.
+    #[test]
+    fn targets_by_hand() {
+        let b = Detection::from_centre(20.0, 12.0, 16.0, 8.0, 1.0);
+        let (h, r, m) = targets(&[b], 32);
+        let k = 4 + 2;
+        assert_eq!(h[k], 1.0);
+        assert!((h[k + 1] - (-2f32).exp()).abs() < 1e-6);
+        assert!((h[k + 4] - (-2f32).exp()).abs() < 1e-6);
+        assert_eq!(h.iter().filter(|&&v| v == 1.0).count(), 1);
+        assert_eq!(
+            [r[k], r[16 + k], r[32 + k], r[48 + k]],
+            [0.5, 0.5, 2f32.ln(), 0.0]
+        );
+        assert_eq!(m.iter().sum::<f32>(), 4.0);
+        // A centre outside the crop gives nothing.
+        let (h, _, m) = targets(&[Detection::from_centre(40.0, 5.0, 8.0, 8.0, 1.0)], 32);
+        assert!(h.iter().all(|&v| v == 0.0) && m.iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn mask_boxes_by_hand() {
+        // 5 × 3 mask: id 1 at (1, 0) and (2, 1); id 2 at (4, 2); id 3 not asked for.
+        let mask = [0, 1, 0, 0, 3, 0, 0, 1, 0, 0, 0, 0, 0, 0, 2];
+        let ids: HashSet<u16> = [1, 2].into_iter().collect();
+        let b = boxes_of_mask(&mask, 5, 3, &ids);
+        assert_eq!(b.len(), 2);
+        assert_eq!((b[0].x0, b[0].y0, b[0].x1, b[0].y1), (1.0, 0.0, 3.0, 2.0));
+        assert_eq!((b[1].x0, b[1].y0, b[1].x1, b[1].y1), (4.0, 2.0, 5.0, 3.0));
+    }
+}

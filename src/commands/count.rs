@@ -1,0 +1,214 @@
+//! `deepfoids count`: how many fish are in this cage video (thesis §4.4,
+//! Fig. 4.5; the pipeline is `deepfoids_count`'s). `deepfoids bench count`
+//! times it.
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use deepfoids_count::count::{Outputs, run as count_run};
+use deepfoids_count::{CountConfig, Counter, Detector, InputCamera};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct CountArgs {
+    /// A video (decoded by the system's ffmpeg) or a folder of PNG/JPEG frames
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub opts: CountOptions,
+    /// Output folder: counts.csv (per frame), summary.json, annotated/ (with --annotate)
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Write every N-th processed frame with its boxes drawn to DIR/annotated (0: none)
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub annotate: usize,
+    /// Process every N-th frame of the input
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub every: usize,
+    /// Stop after this many processed frames
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<usize>,
+    /// No per-frame lines
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Options shared by `count` and `bench count`.
+#[derive(Args, Debug, Clone)]
+pub struct CountOptions {
+    /// The camera that filmed the input: fisheye (corrected to a perspective view) or pinhole
+    #[arg(long, default_value = "fisheye", value_parser = ["fisheye", "pinhole"])]
+    pub camera: String,
+    /// Field of view of the fisheye (degrees; the thesis' camera: 235)
+    #[arg(long, default_value_t = 235.0, value_name = "DEG")]
+    pub fov: f32,
+    /// Detector: our ONNX (`deepfoids train-detector`) or a YOLOv8 ONNX export [default: the shipped detectors/fish.onnx]
+    #[arg(long, value_name = "X.onnx")]
+    pub detector: Option<PathBuf>,
+    /// Least confidence of a detection
+    #[arg(long, default_value_t = 0.5)]
+    pub conf: f32,
+    /// IoU above which the one NMS merges boxes
+    #[arg(long, default_value_t = 0.5)]
+    pub iou: f32,
+    /// Field of view of the corrected perspective view (degrees) [default: the detector's, else 120]
+    #[arg(long, value_name = "DEG")]
+    pub view_fov: Option<f32>,
+    /// Side of the corrected view (pixels) [default: the detector's, else 832]
+    #[arg(long, value_name = "PX")]
+    pub view_size: Option<u32>,
+    /// Median-blur kernel (odd pixels; 1: off)
+    #[arg(long, default_value_t = 3)]
+    pub median: u32,
+}
+
+/// Where the shipped detector is: `$DEEPFOIDS_DETECTORS`, else `./detectors`, else the repository's.
+fn shipped_detector() -> PathBuf {
+    let root = std::env::var("DEEPFOIDS_DETECTORS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| {
+            let local = PathBuf::from("detectors");
+            if local.is_dir() {
+                local
+            } else {
+                Path::new(env!("CARGO_MANIFEST_DIR")).join("detectors")
+            }
+        });
+    root.join("fish.onnx")
+}
+
+/// The counter of `opts`: the detector loaded, its training view as the default.
+pub fn counter(opts: &CountOptions) -> Result<Counter> {
+    let path = match &opts.detector {
+        Some(p) => p.clone(),
+        None => {
+            let p = shipped_detector();
+            if !p.is_file() {
+                bail!(
+                    "no shipped detector at {}; pass --detector X.onnx (train one with `deepfoids train-detector`, or bring a YOLOv8 ONNX export)",
+                    p.display()
+                );
+            }
+            p
+        }
+    };
+    let defaults = CountConfig::default();
+    let detector = Detector::load(&path, defaults.window)?;
+    let meta_f = |k: &str| detector.metadata.get(k).and_then(|v| v.parse::<f32>().ok());
+    let meta_u = |k: &str| detector.metadata.get(k).and_then(|v| v.parse::<u32>().ok());
+    let config = CountConfig {
+        camera: match opts.camera.as_str() {
+            "pinhole" => InputCamera::Pinhole,
+            _ => InputCamera::Fisheye { fov_deg: opts.fov },
+        },
+        view_fov_deg: opts
+            .view_fov
+            .or_else(|| meta_f("view_fov_deg"))
+            .unwrap_or(defaults.view_fov_deg),
+        view_size: opts
+            .view_size
+            .or_else(|| meta_u("view_size"))
+            .unwrap_or(defaults.view_size),
+        median: opts.median,
+        conf: opts.conf,
+        iou: opts.iou,
+        ..defaults
+    };
+    Ok(Counter::new(config, detector)?)
+}
+
+pub fn run(args: &CountArgs) -> Result<()> {
+    if args.every == 0 {
+        bail!("--every must be at least 1");
+    }
+    let mut counter = counter(&args.opts)?;
+    let _lock = match &args.out {
+        Some(d) => Some(crate::io::lock_dir(d)?),
+        None => None,
+    };
+    let out = Outputs {
+        dir: args.out.clone(),
+        annotate_every: args.annotate,
+        frame_step: args.every,
+        max_frames: args.max_frames,
+    };
+    let start = Instant::now();
+    let quiet = args.quiet;
+    let s = count_run(&mut counter, &args.input, &out, |i, name, n| {
+        if !quiet {
+            println!("frame {i} ({name}): {n} fish");
+        }
+    })
+    .with_context(|| format!("counting {}", args.input.display()))?;
+    let wall = start.elapsed().as_secs_f64();
+    println!(
+        "{} frames in {:.1} s ({:.2} frames/s); per frame: median {}, 90th percentile {}, mean {:.1}",
+        s.frames,
+        wall,
+        s.frames as f64 / wall.max(1e-9),
+        s.median,
+        s.p90,
+        s.mean
+    );
+    if let Some(d) = &args.out {
+        println!("counts in {}", d.join("counts.csv").display());
+    }
+    println!("{}", s.line());
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct BenchCountArgs {
+    /// A video or folder of frames (1280 × 720 fisheye frames for the target)
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub opts: CountOptions,
+    /// Frames to time (after one untimed warm-up frame)
+    #[arg(long, default_value_t = 10)]
+    pub frames: usize,
+}
+
+/// `deepfoids bench count`: frames per second of the whole pipeline, and its split.
+pub fn bench(args: &BenchCountArgs) -> Result<()> {
+    let mut counter = counter(&args.opts)?;
+    let mut frames = deepfoids_count::frames::Frames::open(&args.input)?;
+    let mut imgs = Vec::new();
+    while imgs.len() < args.frames + 1 {
+        match frames.next_frame()? {
+            Some((_, img)) => imgs.push(img),
+            None => break,
+        }
+    }
+    if imgs.len() < 2 {
+        bail!("{} holds fewer than 2 frames", args.input.display());
+    }
+    counter.frame(&imgs[0])?;
+    let (mut t_pre, mut t_det, mut fish, mut wins) = (0.0, 0.0, 0, 0);
+    for img in &imgs[1..] {
+        let t = Instant::now();
+        let view = counter.preprocess(img);
+        t_pre += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let (d, w) = counter.detect(&view)?;
+        t_det += t.elapsed().as_secs_f64();
+        fish += d.len();
+        wins = w;
+    }
+    let n = (imgs.len() - 1) as f64;
+    let (w, h) = imgs[0].dimensions();
+    println!(
+        "{w}×{h} {}, {} threads, {wins} windows per frame, detector {}: {:.1} fish per frame",
+        args.opts.camera,
+        rayon::current_num_threads(),
+        counter.detector.path.display(),
+        fish as f64 / n
+    );
+    println!(
+        "{:.2} frames/s (pre-processing {:.0} ms, detection + NMS {:.0} ms per frame)",
+        n / (t_pre + t_det),
+        1e3 * t_pre / n,
+        1e3 * t_det / n
+    );
+    Ok(())
+}

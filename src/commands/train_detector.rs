@@ -1,0 +1,99 @@
+//! `deepfoids train-detector`: our fish detector trained from scratch on
+//! `render` folders (`deepfoids_count::train`), exported to ONNX.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use deepfoids_count::train::{TrainConfig, load_data, train};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct TrainDetectorArgs {
+    /// `deepfoids render` output folders (split by clip: their val clips are held out)
+    #[arg(long, value_name = "DIR", num_args = 1.., required = true)]
+    pub data: Vec<PathBuf>,
+    /// Output folder: detector.onnx, model.bpk (Burn), report.json
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Optimiser steps
+    #[arg(long, default_value_t = TrainConfig::default().steps)]
+    pub steps: usize,
+    /// Stop after this many minutes even if steps remain (0: no limit)
+    #[arg(long, default_value_t = 0.0)]
+    pub minutes: f64,
+    /// Crops per step
+    #[arg(long, default_value_t = TrainConfig::default().batch)]
+    pub batch: usize,
+    /// Side of the training crops (pixels, a multiple of 8)
+    #[arg(long, default_value_t = TrainConfig::default().crop)]
+    pub crop: u32,
+    /// Adam's first learning rate (decayed linearly to a tenth)
+    #[arg(long, default_value_t = TrainConfig::default().lr)]
+    pub lr: f64,
+    /// Channels of the first layer (the network's width)
+    #[arg(long, default_value_t = TrainConfig::default().base)]
+    pub base: usize,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Field of view of the perspective view fisheye frames are corrected to (degrees), as `count`'s
+    #[arg(long, default_value_t = 120.0)]
+    pub view_fov: f32,
+    /// Side of that view (pixels), as `count`'s
+    #[arg(long, default_value_t = 832)]
+    pub view_size: u32,
+    /// Use at most this many training frames (0: all)
+    #[arg(long, default_value_t = 0)]
+    pub max_frames: usize,
+    /// No progress lines
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn run(args: &TrainDetectorArgs) -> Result<()> {
+    if args.steps == 0 || args.batch == 0 {
+        bail!("--steps and --batch must be at least 1");
+    }
+    let mut cfg = TrainConfig {
+        steps: args.steps,
+        minutes: args.minutes,
+        batch: args.batch,
+        crop: args.crop,
+        lr: args.lr,
+        base: args.base,
+        seed: args.seed,
+        max_frames: args.max_frames,
+        ..TrainConfig::default()
+    };
+    cfg.count.view_fov_deg = args.view_fov;
+    cfg.count.view_size = args.view_size;
+    cfg.count.validate()?;
+    let _lock = crate::io::lock_dir(&args.out)?;
+    let t = Instant::now();
+    let data = load_data(&args.data, &cfg.count, cfg.max_frames)?;
+    println!(
+        "data: {} train frames ({} fish), {} val frames ({} fish) from {} folders, loaded in {:.1} s",
+        data.train.len(),
+        data.train.iter().map(|s| s.boxes.len()).sum::<usize>(),
+        data.val.len(),
+        data.val.iter().map(|s| s.boxes.len()).sum::<usize>(),
+        args.data.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let quiet = args.quiet;
+    let r = train(&data, &cfg, &args.out, |line| {
+        if !quiet {
+            println!("{line}");
+        }
+    })?;
+    println!(
+        "{} steps in {:.0} s; {} parameters, ONNX {:.2} MB; mAP50 {}; written to {}",
+        r.steps,
+        r.seconds,
+        r.parameters,
+        r.onnx_bytes as f64 / 1e6,
+        r.map50
+            .map_or("not measured (no val frames)".into(), |m| format!("{m:.3}")),
+        args.out.join("detector.onnx").display()
+    );
+    Ok(())
+}
