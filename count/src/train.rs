@@ -367,6 +367,8 @@ pub struct Report {
     /// Mean |detected − labelled| fish per val frame at the default confidence.
     pub val_count_mae: Option<f64>,
     pub val_count_truth_mean: Option<f64>,
+    /// Per val clip: the MAX estimate against the most labelled fish in a frame.
+    pub val_clips: Vec<ClipCount>,
     pub parameters: usize,
     pub onnx_bytes: usize,
 }
@@ -470,16 +472,16 @@ pub fn train(
     let onnx_path = out.join("detector.onnx");
     write_atomic(&onnx_path, &onnx).map_err(CountError::io(&onnx_path))?;
     let parameters = model.num_params();
-    let (map50, mae, truth_mean) = if data.val.is_empty() {
+    let evaluation = if data.val.is_empty() {
         log("no val frames: mAP50 not measured");
-        (None, None, None)
+        None
     } else {
         let ev = evaluate(&onnx_path, &data.val, &cfg.count)?;
         log(&format!(
             "val: mAP50 {:.3}, count error {:.2} fish per frame (labelled {:.1})",
-            ev.0, ev.1, ev.2
+            ev.map50, ev.count_mae, ev.truth_mean
         ));
-        (Some(ev.0), Some(ev.1), Some(ev.2))
+        Some(ev)
     };
     let report = Report {
         steps,
@@ -490,9 +492,10 @@ pub fn train(
         val_fish: data.val.iter().map(|s| s.boxes.len()).sum(),
         first_loss: first,
         final_loss: last,
-        map50,
-        val_count_mae: mae,
-        val_count_truth_mean: truth_mean,
+        map50: evaluation.as_ref().map(|e| e.map50),
+        val_count_mae: evaluation.as_ref().map(|e| e.count_mae),
+        val_count_truth_mean: evaluation.as_ref().map(|e| e.truth_mean),
+        val_clips: evaluation.map(|e| e.clips).unwrap_or_default(),
         parameters,
         onnx_bytes: onnx.len(),
     };
@@ -507,11 +510,35 @@ pub fn train(
     Ok(report)
 }
 
-/// `(mAP50, mean |count error|, mean labelled count)` of a detector on
-/// pre-processed samples, run as `count` runs it (windows, edge rule, NMS).
-/// AP ranks every detection above a low confidence (0.05); the count uses
-/// the configured one.
-pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<(f64, f64, f64)> {
+/// A detector scored on pre-processed samples.
+#[derive(Clone, Debug, Serialize)]
+pub struct Evaluation {
+    /// AP at IoU 0.5 over every frame (detections ranked from confidence 0.05).
+    pub map50: f64,
+    /// Mean |detected − labelled| fish per frame at the configured confidence.
+    pub count_mae: f64,
+    /// Mean labelled fish per frame.
+    pub truth_mean: f64,
+    /// Per clip: the MAX estimate against the most fish labelled in one frame.
+    pub clips: Vec<ClipCount>,
+}
+
+/// One clip's count against its labels.
+#[derive(Clone, Debug, Serialize)]
+pub struct ClipCount {
+    pub clip: String,
+    pub frames: usize,
+    /// Max over frames of the labelled (detectable, in the view) fish.
+    pub truth_max: usize,
+    /// Max over frames of the detections (the thesis' MAX).
+    pub estimate: usize,
+    /// `(estimate − truth_max) / truth_max`.
+    pub relative_error: f64,
+}
+
+/// Score a detector on pre-processed samples, run as `count` runs it
+/// (windows, edge rule, NMS).
+pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<Evaluation> {
     let detector = Detector::load(onnx, cfg.window)?;
     let low = CountConfig {
         conf: 0.05,
@@ -520,16 +547,39 @@ pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<(f
     };
     let counter = Counter::new(low, detector)?;
     let (mut dets, mut truth, mut err, mut tot) = (vec![], vec![], 0.0, 0.0);
+    let mut clips: Vec<ClipCount> = Vec::new();
     for s in samples {
         let (d, _) = counter.detect(&s.image)?;
         let n = d.iter().filter(|x| x.score >= cfg.conf).count();
         err += (n as f64 - s.boxes.len() as f64).abs();
         tot += s.boxes.len() as f64;
+        match clips.iter_mut().find(|c| c.clip == s.clip) {
+            Some(c) => {
+                c.frames += 1;
+                c.truth_max = c.truth_max.max(s.boxes.len());
+                c.estimate = c.estimate.max(n);
+            }
+            None => clips.push(ClipCount {
+                clip: s.clip.clone(),
+                frames: 1,
+                truth_max: s.boxes.len(),
+                estimate: n,
+                relative_error: 0.0,
+            }),
+        }
         dets.push(d);
         truth.push(s.boxes.clone());
     }
+    for c in &mut clips {
+        c.relative_error = (c.estimate as f64 - c.truth_max as f64) / (c.truth_max.max(1)) as f64;
+    }
     let k = samples.len().max(1) as f64;
-    Ok((average_precision(&dets, &truth, 0.5), err / k, tot / k))
+    Ok(Evaluation {
+        map50: average_precision(&dets, &truth, 0.5),
+        count_mae: err / k,
+        truth_mean: tot / k,
+        clips,
+    })
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use anyhow::{Result, bail};
 use clap::Args;
-use deepfoids_count::train::{TrainConfig, load_data, train};
+use deepfoids_count::train::{TrainConfig, evaluate, load_data, train};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -47,6 +47,9 @@ pub struct TrainDetectorArgs {
     /// No progress lines
     #[arg(long)]
     pub quiet: bool,
+    /// Do not train: score this detector on the val split of --data (mAP50, count error per clip)
+    #[arg(long, value_name = "X.onnx")]
+    pub eval: Option<PathBuf>,
 }
 
 pub fn run(args: &TrainDetectorArgs) -> Result<()> {
@@ -79,6 +82,28 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         args.data.len(),
         t.elapsed().as_secs_f64()
     );
+    if let Some(onnx) = &args.eval {
+        let ev = evaluate(onnx, &data.val, &cfg.count)?;
+        println!(
+            "{}: mAP50 {:.3} on {} val frames; count error {:.2} fish per frame (labelled {:.1})",
+            onnx.display(),
+            ev.map50,
+            data.val.len(),
+            ev.count_mae,
+            ev.truth_mean
+        );
+        println!("clip,frames,labelled_max,estimate,relative_error");
+        for c in &ev.clips {
+            println!(
+                "{},{},{},{},{:+.3}",
+                c.clip, c.frames, c.truth_max, c.estimate, c.relative_error
+            );
+        }
+        let p = args.out.join("evaluation.json");
+        std::fs::create_dir_all(&args.out)?;
+        crate::io::write_atomic(&p, serde_json::to_string_pretty(&ev)?.as_bytes())?;
+        return Ok(());
+    }
     let quiet = args.quiet;
     let r = train(&data, &cfg, &args.out, |line| {
         if !quiet {
