@@ -18,8 +18,8 @@
 //! multiple of 8 maps to exactly a 1/8 grid.
 
 use burn::module::Param;
-use burn::nn::{Initializer, PaddingConfig2d};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
+use burn::nn::{Initializer, PaddingConfig2d};
 use burn::prelude::*;
 use burn::tensor::activation::leaky_relu;
 
