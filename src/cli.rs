@@ -17,6 +17,9 @@ pub struct Cli {
     /// Folder of the TOML configuration [default: ./configs, else $DEEPFOIDS_CONFIGS, else the repository's]
     #[arg(long, global = true, value_name = "DIR")]
     pub configs: Option<PathBuf>,
+    /// Reward profile: a folder of `rewards/` in the configuration with the pretrain and transfer weights and SPEC §4/§6.1/§6.2 switches (`thesis`, `legacy`, …) [default: thesis]
+    #[arg(long, global = true, value_name = "NAME")]
+    pub reward_profile: Option<String>,
     /// Worker threads, 1 to 1024 (0 is refused) [default: one per core]
     #[arg(long, global = true, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
@@ -353,11 +356,14 @@ pub fn run() -> Result<()> {
             .build_global()
             .context("cannot set up the thread pool")?;
     }
-    let dirs = cli
+    let mut dirs = cli
         .configs
         .clone()
         .map(ConfigDirs::new)
         .unwrap_or_else(ConfigDirs::discover);
+    if let Some(profile) = &cli.reward_profile {
+        dirs = dirs.with_reward_profile(profile);
+    }
     match cli.command {
         None => commands::default_job(&dirs),
         Some(Command::Scenes) => commands::scenes::run(&dirs),

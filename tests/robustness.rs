@@ -32,16 +32,26 @@ fn temp(name: &str) -> PathBuf {
     d
 }
 
+/// Copy folder `from` into `to`, sub-folders (the reward profiles) included.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let dest = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &dest);
+        } else {
+            std::fs::copy(&p, dest).unwrap();
+        }
+    }
+}
+
 /// A copy of `configs/` with `from` replaced by `to` in the seabream default scene.
 fn configs_with(name: &str, from: &str, to: &str) -> PathBuf {
     let root = temp(name);
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
     for sub in ["species", "sites", "scenes", "rewards", "baselines"] {
-        std::fs::create_dir_all(root.join(sub)).unwrap();
-        for e in std::fs::read_dir(src.join(sub)).unwrap() {
-            let p = e.unwrap().path();
-            std::fs::copy(&p, root.join(sub).join(p.file_name().unwrap())).unwrap();
-        }
+        copy_dir(&src.join(sub), &root.join(sub));
     }
     let scene = root.join("scenes/seabream_default.toml");
     let t = std::fs::read_to_string(&scene).unwrap();
