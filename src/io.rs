@@ -1,8 +1,7 @@
-//! Atomic file writing lives in `deepfoids_env::io`; re-exported for the
-//! commands, with the folder lock of `deepfoids_env::lock`.
+//! Atomic file writing and the folder lock live in `deepfoids_io`;
+//! re-exported for the commands.
 
-pub use deepfoids_env::io::{AtomicFile, create_dir_atomic, write_atomic};
-pub use deepfoids_env::lock::DirLock;
+pub use deepfoids_io::{AtomicFile, DirLock, create_dir_atomic, write_atomic};
 
 /// Lock output folder `dir` until the returned guard drops, so that no other
 /// process writes it meanwhile; a lock left by a process that died is taken

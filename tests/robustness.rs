@@ -613,7 +613,7 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
 #[test]
 fn a_pipeline_in_use_is_refused() {
     let runs = temp("pipeline-lock");
-    let lock = deepfoids_env::lock::DirLock::acquire(&runs.join("p")).unwrap();
+    let lock = deepfoids_io::DirLock::acquire(&runs.join("p")).unwrap();
     let o = deepfoids(&[
         "pipeline",
         "--species",

@@ -181,7 +181,7 @@ pub fn save_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
         path: path.to_path_buf(),
         reason: e.to_string(),
     })?;
-    deepfoids_env::io::write_atomic(path, text.as_bytes()).map_err(LearnError::io(path))
+    deepfoids_io::write_atomic(path, text.as_bytes()).map_err(LearnError::io(path))
 }
 
 /// Read JSON that should hold `what`.

@@ -273,7 +273,7 @@ struct Behaviour<L> {
 }
 
 /// The run folder of a training run. The caller holds its lock
-/// (`deepfoids_env::lock::DirLock`, taken by the `train` and `pipeline`
+/// (`deepfoids_io::DirLock`, taken by the `train` and `pipeline`
 /// commands for the life of the process) and has checked `--init-from`
 /// ([`open_sources`]) before creating it.
 pub fn open_run(run_dir: &Path) -> Result<()> {

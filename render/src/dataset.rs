@@ -12,7 +12,7 @@
 //! exists is complete, which is how an interrupted render continues.
 
 use crate::render::{FishLabel, Frame};
-use deepfoids_env::io::write_atomic;
+use deepfoids_io::write_atomic;
 use serde::Serialize;
 use serde_json::{Value, json};
 use std::io::Cursor;
