@@ -28,11 +28,25 @@ pub enum Algorithm {
 }
 
 impl Algorithm {
+    /// Every algorithm, in the order the command line lists them.
+    pub const ALL: [Algorithm; 2] = [Algorithm::Ppo, Algorithm::Sac];
+
     pub fn as_str(&self) -> &'static str {
         match self {
             Algorithm::Ppo => "ppo",
             Algorithm::Sac => "sac",
         }
+    }
+}
+
+impl std::str::FromStr for Algorithm {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|a| a.as_str() == s)
+            .ok_or_else(|| format!("unknown algorithm `{s}`; allowed: ppo, sac"))
     }
 }
 

@@ -11,19 +11,41 @@
 //!   per decision, P, M, state shares, collisions per fish-hour, nearest-neighbour
 //!   distance — with the training's wall-clock time and agent-steps/s.
 
-use super::{load_scene, load_trained};
-use crate::cli::CompareArgs;
-use crate::plot::{FONT, pe, save_png};
-use crate::report::{PALETTE, evaluate};
 use anyhow::{Context, Result, bail};
+use clap::Args;
 use deepfoids_env::limits::MAX_SEEDS;
 use deepfoids_env::metrics::{SchoolState, Summary};
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, TERM_NAMES};
+use deepfoids_experiments::evaluate::{PALETTE, evaluate};
+use deepfoids_experiments::plot::{FONT, pe, save_png};
+use deepfoids_experiments::{bounds, load_scene, load_trained, lock_dir, pretrained};
 use deepfoids_learn::checkpoint::{RunState, policy_dir};
 use plotters::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Run folders (two or more); `pretrained:<species>` names a shipped policy
+    #[arg(value_name = "RUN", required = true, num_args = 2.., value_parser = pretrained::parse_run)]
+    pub runs: Vec<PathBuf>,
+    /// Scene to evaluate every run in [default: the first run's]
+    #[arg(long, value_name = "ID|PATH")]
+    pub scene: Option<String>,
+    /// Simulated seconds per evaluation
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Evaluation seeds 0..N, the same for every run
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    pub seeds: u64,
+    /// Weight of the exponential moving average of the curves (TensorBoard's smoothing)
+    #[arg(long, default_value_t = 0.6, value_name = "W")]
+    pub smoothing: f64,
+    /// Output folder
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+}
 
 /// Logged scalars: `(behaviour, tag)` → `(step, value)` in logging order.
 type Scalars = BTreeMap<(String, String), Vec<(u64, f64)>>;
@@ -118,8 +140,8 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
             args.runs.len()
         );
     }
-    crate::bounds::seconds("--seconds", args.seconds)?;
-    crate::bounds::count_within("--seeds", args.seeds, [1, MAX_SEEDS], "seeds")?;
+    bounds::seconds("--seconds", args.seconds)?;
+    bounds::count_within("--seeds", args.seeds, [1, MAX_SEEDS], "seeds")?;
     if !(0.0..1.0).contains(&args.smoothing) {
         bail!("--smoothing must lie in [0, 1), got {}", args.smoothing);
     }
@@ -133,7 +155,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| runs[0].state.scene.clone());
     let scene = load_scene(dirs, &scene_id, runs[0].state.phase)?;
-    let _lock = crate::io::lock_dir(&args.out)?;
+    let _lock = lock_dir(&args.out)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
 
@@ -184,8 +206,8 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
         rows.push(average(&summaries));
     }
     let (md, csv) = table(&runs, &rows, &scene.id, args);
-    crate::io::write_atomic(args.out.join("compare.md"), md.as_bytes())?;
-    crate::io::write_atomic(args.out.join("compare.csv"), csv.as_bytes())?;
+    deepfoids_io::write_atomic(args.out.join("compare.md"), md.as_bytes())?;
+    deepfoids_io::write_atomic(args.out.join("compare.csv"), csv.as_bytes())?;
     println!("{md}");
     println!(
         "wrote {}/compare.md, compare.csv, learning_curves.png, reward_terms.png",

@@ -4,7 +4,7 @@
 
 use super::claims::Claim;
 use super::{Profile, Stage};
-use crate::report::{EvalMeta, RunArgs, evaluate, write_outputs};
+use crate::evaluate::{EvalMeta, RunArgs, evaluate, write_outputs};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::world::Chase;
@@ -295,20 +295,17 @@ pub fn measure_one(
     {
         return Ok((m, eval_dir));
     }
-    let scene = super::load_scene(dirs, scene_id, phase)?;
+    let scene = crate::load_scene(dirs, scene_id, phase)?;
     let env_seed = ENV_SEED_BASE + 1000 * es + ts;
     let mut env = Env::new(scene, env_seed);
     let mut pol: Box<dyn deepfoids_env::Policy> = match &policy_path {
-        Some(d) => Box::new(super::super::load_trained(d, None, &env, true, ts)?),
-        None => super::super::make_policy(
+        Some(d) => Box::new(crate::load_trained(d, None, &env, true, ts)?),
+        None => crate::make_policy(
             dirs,
             policy,
             env_seed,
             &env,
-            &crate::cli::PolicyArgs {
-                checkpoint: None,
-                stochastic: false,
-            },
+            &crate::PolicyOptions::default(),
         )?,
     };
     eprintln!("measuring {policy} in {scene_id} (training seed {ts}, evaluation seed {es})");
@@ -356,7 +353,7 @@ pub fn measure_one(
         want_stamp,
         &eval.recorder.samples,
     );
-    crate::io::write_atomic(&cache, serde_json::to_string_pretty(&m)?.as_bytes())?;
+    deepfoids_io::write_atomic(&cache, serde_json::to_string_pretty(&m)?.as_bytes())?;
     Ok((m, eval_dir))
 }
 

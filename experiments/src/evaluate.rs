@@ -1,13 +1,12 @@
 //! Evaluating a school and writing what `eval` reports: `metrics.csv`,
 //! `summary.json`, and the P/M, depth and trajectory plots.
 
-use crate::cli::{PolicyArgs, SceneArgs};
-use crate::io::{AtomicFile, write_atomic};
 use crate::plot::{FONT, pe, save_png};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{Env, Policy};
+use deepfoids_io::{AtomicFile, write_atomic};
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -120,46 +119,6 @@ pub struct RunArgs {
     pub warmup: f64,
     /// Simulated seconds.
     pub seconds: f64,
-}
-
-impl RunArgs {
-    /// The values of `scene` and `policy` options as the commands parse them.
-    pub fn new(
-        scene: &SceneArgs,
-        policy: &str,
-        opts: &PolicyArgs,
-        warmup: f64,
-        seconds: f64,
-    ) -> Self {
-        Self {
-            scene: scene.scene.clone(),
-            phase: scene.phase.as_str().to_string(),
-            seed: scene.seed,
-            policy: policy.to_string(),
-            checkpoint: opts.checkpoint,
-            stochastic: opts.stochastic,
-            warmup,
-            seconds,
-        }
-    }
-
-    /// Back to the options, for loading the scene and policy again.
-    pub fn options(&self) -> Result<(SceneArgs, PolicyArgs)> {
-        Ok((
-            SceneArgs {
-                scene: self.scene.clone(),
-                seed: self.seed,
-                phase: self
-                    .phase
-                    .parse()
-                    .map_err(|e| anyhow::anyhow!("phase `{}`: {e}", self.phase))?,
-            },
-            PolicyArgs {
-                checkpoint: self.checkpoint,
-                stochastic: self.stochastic,
-            },
-        ))
-    }
 }
 
 /// Write `metrics.csv`, `summary.json`, `pm.png`, `depth.png` and `trajectories.png` to `dir`.
