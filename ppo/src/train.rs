@@ -55,7 +55,7 @@ use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, RunSettings, St
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::logger::Scalars;
-use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::onnx::Metadata;
 use deepfoids_learn::tensor::{ForceInit, ParamIds, clip_grad_norm, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, BodyConfig, Grids, LearnError, Result};
 use serde::{Deserialize, Serialize};
@@ -637,15 +637,7 @@ impl Learner for PpoLearner {
     }
 
     fn actor_onnx(&self, meta: &Metadata) -> Vec<u8> {
-        let log_std = self.model.log_std.val();
-        export_policy(
-            &self.model.actor_body,
-            Head::Gaussian {
-                mean: &self.model.actor_mean,
-                log_std: &log_std,
-            },
-            meta,
-        )
+        self.model.actor_onnx(meta)
     }
 
     fn memory(&self) -> BufferMemory {
