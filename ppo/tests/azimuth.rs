@@ -1,14 +1,14 @@
 //! Issue 11 item 2: the network sees the whole sensor. A fish placed in any
-//! of the 34 azimuth columns changes the actor's output — on the kernels, on
-//! Burn's layers and in the exported ONNX's layout; the stock encoder (no
-//! azimuth padding) was blind to columns 28–33.
+//! of the 34 azimuth columns changes the actor's output — on the kernels and
+//! on Burn's layers (here), and in the exported ONNX run by tract
+//! (`onnx/tests/azimuth.rs`); the stock encoder (no azimuth padding) was
+//! blind to columns 28–33.
 
 use burn::module::Param;
-use burn::nn::conv::Conv2dConfig;
 use burn::prelude::*;
 use deepfoids_env::VECTOR_OBS;
+use deepfoids_learn::kernels::geometry::{AZ_PAD, K1, K2, S1, S2};
 use deepfoids_learn::policy::Actor;
-use deepfoids_learn::tensor::{tensor4, to_vec};
 use deepfoids_ppo::PpoActor;
 use deepfoids_ppo::model::ActorCriticConfig;
 use deepfoids_sensors::{AZ_CELLS, CELLS, FRAME_LEN, STACK, STACKED_LEN};
@@ -72,25 +72,35 @@ fn a_fish_in_every_azimuth_column_changes_the_actors_output() {
     }
 }
 
-/// The stock encoder (Conv 8×8 stride 4 on 34 columns, no padding): columns
-/// 28–33 never reach the output — the bug the padding fixes.
+/// The input columns (of `AZ_CELLS`) that reach the encoder's output when
+/// `pad` zero columns are added on each side, through conv 1 (`k1`, stride
+/// `s1`) and conv 2 (`k2`, stride `s2`).
+fn columns_seen(pad: usize, k1: usize, s1: usize, k2: usize, s2: usize) -> Vec<bool> {
+    let width = AZ_CELLS + 2 * pad;
+    let w1 = (width - k1) / s1 + 1;
+    let w2 = (w1 - k2) / s2 + 1;
+    let mut seen = vec![false; AZ_CELLS];
+    for o2 in 0..w2 {
+        for o1 in o2 * s2..o2 * s2 + k2 {
+            for padded in o1 * s1..o1 * s1 + k1 {
+                if let Some(col) = padded.checked_sub(pad).filter(|&c| c < AZ_CELLS) {
+                    seen[col] = true;
+                }
+            }
+        }
+    }
+    seen
+}
+
+/// The encoder's geometry (`deepfoids_learn::kernels::geometry`) covers every
+/// azimuth column; without its padding (the stock encoder: Conv 8×8 stride 4
+/// on 34 columns) columns 28–33 never reach the output — the bug the padding
+/// fixes.
 #[test]
-fn the_stock_encoder_was_blind_on_the_right() {
-    let dev = Device::flex();
-    let conv1 = Conv2dConfig::new([18, 16], [8, 8])
-        .with_stride([4, 4])
-        .init(&dev);
-    let conv2 = Conv2dConfig::new([16, 32], [4, 4])
-        .with_stride([2, 2])
-        .init(&dev);
-    let encode = |g: Vec<f32>| {
-        let x = tensor4(g, 1, &dev);
-        to_vec(conv2.forward(conv1.forward(x)))
-    };
-    let base = encode(grid_with_fish(None));
-    let seen: Vec<bool> = (0..AZ_CELLS)
-        .map(|col| max_diff(&encode(grid_with_fish(Some(col))), &base) > 0.0)
-        .collect();
-    assert!(seen[..28].iter().all(|&s| s));
-    assert!(seen[28..].iter().all(|&s| !s), "{seen:?}");
+fn the_encoder_geometry_covers_every_azimuth_column() {
+    let ours = columns_seen(AZ_PAD, K1, S1, K2, S2);
+    assert!(ours.iter().all(|&s| s), "blind columns: {ours:?}");
+    let stock = columns_seen(0, K1, S1, K2, S2);
+    assert!(stock[..28].iter().all(|&s| s), "{stock:?}");
+    assert!(stock[28..].iter().all(|&s| !s), "{stock:?}");
 }
