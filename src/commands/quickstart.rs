@@ -11,7 +11,7 @@ use deepfoids_learn::{Algorithm, Backend};
 /// experiment so that, in its own deterministic evaluation, the school swims
 /// (mean speed ≥ 0.3 BL/s, the thesis' `v_st`) and stays in the cage (≤ 10
 /// boundary collisions per fish-hour) within about 5 minutes on 2 cores; the
-/// experiments are in README's "Quickstart". Everything else is the thesis'
+/// experiments are in docs/quickstart.md. Everything else is the thesis'
 /// (Table 4.4's PPO, the pretraining weights of Table 4.1).
 pub struct Quickstart {
     /// Scene id.
