@@ -1,14 +1,16 @@
 //! What the `deepfoids` commands do, as a library that a Python or Ray driver
 //! can call without the command line: load scenes and policies
 //! ([`policies`]), evaluate a school ([`evaluate`]), train a scene
-//! ([`training`]), the two-step scheme ([`pipeline`]) and the reproduction of
-//! thesis §4.5 ([`reproduce`]: stages, claims, measurement, figures, shipping).
+//! ([`training`]), runs side by side ([`compare`]), the two-step scheme
+//! ([`pipeline`]) and the reproduction of thesis §4.5 ([`reproduce`]: stages,
+//! claims, measurement, figures, shipping).
 //!
 //! Errors are `anyhow` chains: the library crates below (`deepfoids-env`,
 //! `-learn`, `-ppo`, `-sac`, `-onnx`, `-io`) give typed errors that name the
 //! file or value; this crate adds which run, stage or claim it was.
 
 pub mod bounds;
+pub mod compare;
 pub mod evaluate;
 pub mod pipeline;
 pub mod plot;
