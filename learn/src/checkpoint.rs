@@ -12,49 +12,13 @@
 //! Checkpoint folders appear atomically (written under a temporary name, then
 //! renamed), so a kill at any moment leaves only whole checkpoints.
 
+pub use crate::algorithm::Algorithm;
 use crate::body::ENCODER_LAYOUT;
 use crate::error::{LearnError, Result};
 use burn::module::Module;
 use deepfoids_env::Phase;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
-
-/// The training algorithm of a run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Algorithm {
-    Ppo,
-    Sac,
-}
-
-impl Algorithm {
-    /// Every algorithm, in the order the command line lists them.
-    pub const ALL: [Algorithm; 2] = [Algorithm::Ppo, Algorithm::Sac];
-
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            Algorithm::Ppo => "ppo",
-            Algorithm::Sac => "sac",
-        }
-    }
-}
-
-impl std::str::FromStr for Algorithm {
-    type Err = String;
-
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|a| a.as_str() == s)
-            .ok_or_else(|| format!("unknown algorithm `{s}`; allowed: ppo, sac"))
-    }
-}
-
-impl std::fmt::Display for Algorithm {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
 
 /// Per-behaviour training state.
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -324,7 +324,16 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
         }
     }
     eprintln!("training done; measuring");
-    let measured = measure::measure_all(dirs, &profile, &chosen, &args.out)?;
+    // Every (policy, scene) the chosen claims name, once each.
+    let mut wanted: Vec<(&str, &str)> = Vec::new();
+    for c in &chosen {
+        for e in c.evals {
+            if !wanted.contains(e) {
+                wanted.push(*e);
+            }
+        }
+    }
+    let measured = measure::measure_all(dirs, &profile, &wanted, &stages_for(&chosen), &args.out)?;
     let verdicts: Vec<claims::Verdict> = chosen.iter().map(|c| (c.judge)(&measured)).collect();
     figures::write_report(
         &args.out.join("report"),
