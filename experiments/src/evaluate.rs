@@ -298,26 +298,21 @@ fn plot_pm(path: &Path, eval: &Evaluation, s: &Summary, title: &str) -> Result<(
                 .label(label)
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
         }
-        chart
-            .draw_series(LineSeries::new(
-                samples.iter().map(|x| (x.t as f32, x.p)),
-                PALETTE[0].stroke_width(2),
-            ))
-            .map_err(pe)?
-            .label("P (polarisation)")
-            .legend(|(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], PALETTE[0].stroke_width(2))
-            });
-        chart
-            .draw_series(LineSeries::new(
-                samples.iter().map(|x| (x.t as f32, x.m)),
-                PALETTE[1].stroke_width(2),
-            ))
-            .map_err(pe)?
-            .label("M (milling)")
-            .legend(|(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], PALETTE[1].stroke_width(2))
-            });
+        for (k, label) in ["P (polarisation)", "M (milling)"].into_iter().enumerate() {
+            let colour = PALETTE[k];
+            chart
+                .draw_series(LineSeries::new(
+                    samples
+                        .iter()
+                        .map(|x| (x.t as f32, if k == 0 { x.p } else { x.m })),
+                    colour.stroke_width(2),
+                ))
+                .map_err(pe)?
+                .label(label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
+        }
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::MiddleRight)
