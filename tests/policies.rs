@@ -3,14 +3,14 @@
 //! in its default scene still gives its model card's figures — so a change to
 //! the environment that breaks the shipped policies fails here.
 
-use deepfoids::commands::reproduce::ship::{Card, SPECIES};
-use deepfoids::commands::{load_scene, load_trained};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy};
+use deepfoids_experiments::reproduce::ship::{Card, SPECIES};
+use deepfoids_experiments::{load_scene, load_trained};
 use std::path::PathBuf;
 
 fn shipped(species: &str) -> (PathBuf, Card) {
-    let dir = deepfoids::pretrained::resolve(&format!("pretrained:{species}"))
+    let dir = deepfoids_experiments::pretrained::resolve(&format!("pretrained:{species}"))
         .unwrap_or_else(|e| panic!("{e}"));
     let card: Card = toml::from_str(
         &std::fs::read_to_string(dir.join("card.toml"))
@@ -27,9 +27,9 @@ fn configs() -> ConfigDirs {
 
 #[test]
 fn every_species_ships_a_policy_with_a_card() {
-    let root = deepfoids::pretrained::root();
+    let root = deepfoids_experiments::pretrained::root();
     assert_eq!(
-        deepfoids::pretrained::available(&root),
+        deepfoids_experiments::pretrained::available(&root),
         vec!["coho", "seabream", "yellowtail"],
         "in {}",
         root.display()
@@ -98,7 +98,7 @@ fn shipped_policies_still_give_their_cards_figures() {
         let scene = load_scene(&configs(), &card.scene, Phase::Transfer).unwrap();
         let mut env = Env::new(scene, card.env_seed(card.eval_seeds[0]));
         let mut policy = load_trained(&dir, None, &env, true, card.train_seed).unwrap();
-        let eval = deepfoids::report::evaluate(
+        let eval = deepfoids_experiments::evaluate::evaluate(
             &mut env,
             &mut policy,
             card.warmup,

@@ -3,33 +3,16 @@
 //! machine's memory is refused before it is allocated, and an output folder
 //! is written by one process at a time.
 
+mod support;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-fn command(args: &[&str]) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_deepfoids"));
-    c.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
-
-fn deepfoids(args: &[&str]) -> Output {
-    command(args).output().expect("the binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use support::{command, deepfoids, temp_path, text};
 
 fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deepfoids-robust-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+    temp_path("robust", name)
 }
 
 /// Copy folder `from` into `to`, sub-folders (the reward profiles) included.
@@ -623,7 +606,7 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
 #[test]
 fn a_pipeline_in_use_is_refused() {
     let runs = temp("pipeline-lock");
-    let lock = deepfoids_env::lock::DirLock::acquire(&runs.join("p")).unwrap();
+    let lock = deepfoids_io::DirLock::acquire(&runs.join("p")).unwrap();
     let o = deepfoids(&[
         "pipeline",
         "--species",

@@ -12,7 +12,7 @@
 //! exists is complete, which is how an interrupted render continues.
 
 use crate::render::{FishLabel, Frame};
-use deepfoids_env::io::write_atomic;
+use deepfoids_io::write_atomic;
 use serde::Serialize;
 use serde_json::{Value, json};
 use std::io::Cursor;
@@ -30,6 +30,20 @@ pub enum DatasetError {
     Encode { path: PathBuf, message: String },
     #[error("{path}: {message}")]
     Invalid { path: PathBuf, message: String },
+}
+
+/// `value` as JSON text (compact, or pretty), written atomically to `path`.
+fn write_json(path: &Path, value: &Value, pretty: bool) -> Result<(), DatasetError> {
+    let text = if pretty {
+        serde_json::to_string_pretty(value)
+    } else {
+        serde_json::to_string(value)
+    }
+    .map_err(|e| DatasetError::Encode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    write_atomic(path, text.as_bytes()).map_err(io(path))
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> DatasetError + '_ {
@@ -160,7 +174,7 @@ impl Dataset {
         }
         let mut v = params.clone();
         v["request"] = key.clone();
-        write_atomic(&path, serde_json::to_string_pretty(&v).unwrap().as_bytes()).map_err(io(&path))
+        write_json(&path, &v, true)
     }
 
     /// Write frame `i`: image, mask, YOLO labels, then the frame JSON.
@@ -201,7 +215,7 @@ impl Dataset {
             "fish": fish,
         });
         let p = self.frame_json_path(i);
-        write_atomic(&p, serde_json::to_string(&v).unwrap().as_bytes()).map_err(io(&p))
+        write_json(&p, &v, false)
     }
 
     fn fish_json(&self, f: &FishLabel, frame: &Frame, behaviour_of: &[u16]) -> Value {
@@ -319,7 +333,7 @@ impl Dataset {
             "categories": categories,
         });
         let p = self.dir.join("annotations.json");
-        write_atomic(&p, serde_json::to_string(&coco).unwrap().as_bytes()).map_err(io(&p))?;
+        write_json(&p, &coco, false)?;
         let abs = std::fs::canonicalize(&self.dir).unwrap_or_else(|_| self.dir.clone());
         let mut yaml = format!(
             "# Ultralytics YOLO dataset written by `deepfoids render`.\npath: {}\ntrain: images\nval: images\nnames:\n",

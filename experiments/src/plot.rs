@@ -58,7 +58,7 @@ pub fn save_png(
     draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
 ) -> Result<()> {
     let bytes = render_png(width, height, draw)?;
-    crate::io::write_atomic(path, &bytes)?;
+    deepfoids_io::write_atomic(path, &bytes)?;
     Ok(())
 }
 

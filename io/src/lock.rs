@@ -2,8 +2,8 @@
 //! processes never write one run or output folder at once.
 //!
 //! ```no_run
-//! # fn main() -> Result<(), deepfoids_env::lock::LockError> {
-//! use deepfoids_env::lock::DirLock;
+//! # fn main() -> Result<(), deepfoids_io::LockError> {
+//! use deepfoids_io::DirLock;
 //! let lock = DirLock::acquire(std::path::Path::new("runs/my-run"))?;
 //! if let Some(dead) = lock.stale() {
 //!     eprintln!("warning: took over the stale lock of {dead}");
@@ -176,7 +176,8 @@ impl DirLock {
                 continue;
             }
             let stale = read_record(&mut file);
-            let record = toml::to_string(&Holder::me()).expect("a holder serialises");
+            let record = toml::to_string(&Holder::me())
+                .map_err(|e| err("write", std::io::Error::other(e)))?;
             file.set_len(0)
                 .and_then(|()| file.seek(SeekFrom::Start(0)))
                 .and_then(|_| file.write_all(record.as_bytes()))

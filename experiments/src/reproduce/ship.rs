@@ -177,7 +177,7 @@ pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Re
         }
         std::fs::rename(&tmp, &target)?;
         let _ = std::fs::remove_dir_all(&old);
-        crate::io::write_atomic(
+        deepfoids_io::write_atomic(
             dest.join(format!("{sp}.md")),
             card_markdown(&card).as_bytes(),
         )?;

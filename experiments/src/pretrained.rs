@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 pub const PREFIX: &str = "pretrained:";
 
 /// Where the shipped policies are: `$DEEPFOIDS_POLICIES`, else `./policies`
-/// when it exists, else the repository's.
+/// when it exists, else the repository's (the parent of this crate's folder).
 pub fn root() -> PathBuf {
     if let Ok(d) = std::env::var("DEEPFOIDS_POLICIES") {
         return d.into();
@@ -18,7 +18,10 @@ pub fn root() -> PathBuf {
     if local.is_dir() {
         return local;
     }
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("policies")
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join("policies")
 }
 
 /// Species with a shipped policy in `root`.

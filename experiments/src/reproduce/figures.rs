@@ -4,10 +4,10 @@
 
 use super::claims::{Claim, Verdict};
 use super::measure::{Measured, RPD_TAG};
-use super::{Profile, ReproduceArgs, StageRecord};
-use crate::io::write_atomic;
+use super::{Profile, ReproduceOptions, StageRecord};
 use crate::plot::{FONT, pe, save_png};
 use anyhow::{Context, Result};
+use deepfoids_io::write_atomic;
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -159,158 +159,208 @@ fn stage_lines(
         .collect()
 }
 
-#[allow(clippy::too_many_arguments)]
-pub fn write_report(
-    dir: &Path,
-    profile: &Profile,
-    args: &ReproduceArgs,
-    claims: &[&Claim],
-    verdicts: &[Verdict],
-    records: &[(u64, StageRecord)],
-    m: &Measured,
-    total_seconds: f64,
-) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let has = |id: &str| claims.iter().any(|c| c.id == id);
-    let mut figures: Vec<(&str, String)> = Vec::new();
+/// What the report is written from.
+pub struct Report<'a> {
+    pub profile: &'a Profile,
+    pub args: &'a ReproduceOptions,
+    pub claims: &'a [&'a Claim],
+    pub verdicts: &'a [Verdict],
+    pub records: &'a [(u64, StageRecord)],
+    pub measured: &'a Measured,
+    /// Wall seconds of this invocation.
+    pub total_seconds: f64,
+}
 
+/// Figures, each as `(claim id, file name)` in `dir`.
+type Figures = Vec<(&'static str, String)>;
+
+/// Write the report into `dir`: the figures of the chosen claims, the CSVs,
+/// then `REPORT.md`.
+pub fn write_report(dir: &Path, r: &Report<'_>) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let has = |id: &str| r.claims.iter().any(|c| c.id == id);
+    let m = r.measured;
+    let mut figures: Figures = Vec::new();
     if has("learn") {
-        save_png(&dir.join("learning.png"), 1500, 800, |root| {
-            root.fill(&WHITE).map_err(pe)?;
-            let cells = root.split_evenly((2, 3));
-            for (k, sp) in ["coho", "yellowtail", "seabream"].iter().enumerate() {
-                for (row, (stage, what)) in [
-                    (format!("pretrain-{sp}"), "pretraining"),
-                    (format!("transfer-{sp}_default"), "transfer learning"),
-                ]
-                .iter()
-                .enumerate()
-                {
-                    panel(
-                        &cells[row * 3 + k],
-                        &format!("{sp}: {what}"),
-                        "agent steps",
-                        "reward per decision",
-                        &stage_lines(m, stage, "PPO", BLUE, false),
-                        None,
-                        SeriesLabelPosition::LowerRight,
-                    )?;
-                }
-            }
-            Ok(())
-        })?;
-        figures.push(("learn", "learning.png".into()));
+        figures.push(("learn", learning_figure(dir, m)?));
     }
     if has("transfer") {
-        save_png(&dir.join("transfer.png"), 1000, 520, |root| {
-            root.fill(&WHITE).map_err(pe)?;
-            let mut lines = stage_lines(
-                m,
-                "transfer-density_dense",
-                "two-step (after pretraining)",
-                BLUE,
-                false,
-            );
-            lines.extend(stage_lines(
-                m,
-                "scratch-density_dense",
-                "from scratch",
-                RED,
-                true,
-            ));
-            panel(
-                root,
-                "density_dense: two-step against scratch",
-                "agent steps in density_dense",
-                "reward per decision",
-                &lines,
-                None,
-                SeriesLabelPosition::LowerRight,
-            )
-        })?;
-        figures.push(("transfer", "transfer.png".into()));
+        figures.push(("transfer", transfer_figure(dir, m)?));
     }
     if has("ppo-sac") {
-        save_png(&dir.join("ppo_sac.png"), 1400, 520, |root| {
-            root.fill(&WHITE).map_err(pe)?;
-            let cells = root.split_evenly((1, 2));
-            for (k, (p, s, what)) in [
-                ("pretrain-coho", "sac-pretrain-coho", "pretraining"),
-                (
-                    "transfer-coho_default",
-                    "sac-transfer-coho_default",
-                    "transfer learning",
-                ),
+        figures.push(("ppo-sac", ppo_sac_figure(dir, m)?));
+    }
+    if has("density") {
+        figures.push(("density", density_figure(dir, m)?));
+    }
+    depth_figures(dir, m, &has, &mut figures)?;
+    trajectory_figures(dir, m, &has, &mut figures)?;
+    write_atomic(dir.join("claims.csv"), claims_csv(r)?.as_bytes())?;
+    write_atomic(dir.join("stages.csv"), stages_csv(r.records)?.as_bytes())?;
+    write_atomic(
+        dir.join("measurements.csv"),
+        measurements_csv(m)?.as_bytes(),
+    )?;
+    write_atomic(dir.join("curves.csv"), curves_csv(m)?.as_bytes())?;
+    let mut md = String::new();
+    report_header(&mut md, r)?;
+    report_claims(&mut md, r, &figures)?;
+    report_stages(&mut md, r.records)?;
+    write_atomic(dir.join("REPORT.md"), md.as_bytes())?;
+    Ok(())
+}
+
+/// Fig. 4.7: the learning curves of pretraining and transfer, per species.
+fn learning_figure(dir: &Path, m: &Measured) -> Result<String> {
+    save_png(&dir.join("learning.png"), 1500, 800, |root| {
+        root.fill(&WHITE).map_err(pe)?;
+        let cells = root.split_evenly((2, 3));
+        for (k, sp) in ["coho", "yellowtail", "seabream"].iter().enumerate() {
+            for (row, (stage, what)) in [
+                (format!("pretrain-{sp}"), "pretraining"),
+                (format!("transfer-{sp}_default"), "transfer learning"),
             ]
             .iter()
             .enumerate()
             {
-                let mut lines = stage_lines(m, p, "PPO", BLUE, false);
-                lines.extend(stage_lines(m, s, "SAC", RED, true));
                 panel(
-                    &cells[k],
-                    &format!("coho {what}: PPO against SAC"),
+                    &cells[row * 3 + k],
+                    &format!("{sp}: {what}"),
                     "agent steps",
                     "reward per decision",
-                    &lines,
+                    &stage_lines(m, stage, "PPO", BLUE, false),
                     None,
                     SeriesLabelPosition::LowerRight,
                 )?;
             }
-            Ok(())
-        })?;
-        figures.push(("ppo-sac", "ppo_sac.png".into()));
-    }
-    if has("density") {
-        let series = |p: &str, s: &str, k: usize| -> Vec<(f64, f64)> {
-            m.of(p, s)
-                .first()
-                .map(|x| {
-                    x.pm.iter()
-                        .map(|q| (q.0 as f64, [q.1, q.2][k] as f64))
-                        .collect()
-                })
-                .unwrap_or_default()
-        };
-        save_png(&dir.join("density_pm.png"), 1400, 480, |root| {
-            root.fill(&WHITE).map_err(pe)?;
-            let cells = root.split_evenly((1, 2));
-            for (k, name) in ["P (polarisation)", "M (milling)"].iter().enumerate() {
-                let lines = vec![
-                    Line {
-                        label: "dense (14.7 fish/m³)".into(),
-                        colour: BLUE,
-                        dashed: false,
-                        points: series("transfer-density_dense", "density_dense", k),
-                    },
-                    Line {
-                        label: "sparse (0.59 fish/m³)".into(),
-                        colour: RED,
-                        dashed: true,
-                        points: series("transfer-density_sparse", "density_sparse", k),
-                    },
-                ];
-                // M stays low where P is high: the key goes where the lines are not.
-                let key = if k == 0 {
-                    SeriesLabelPosition::MiddleRight
-                } else {
-                    SeriesLabelPosition::UpperRight
-                };
-                panel(
-                    &cells[k],
-                    name,
-                    "time (s)",
-                    name,
-                    &lines,
-                    Some((0.0, 1.0)),
-                    key,
-                )?;
-            }
-            Ok(())
-        })?;
-        figures.push(("density", "density_pm.png".into()));
-    }
-    // Depth histograms per size class (layers) and per species.
+        }
+        Ok(())
+    })?;
+    Ok("learning.png".into())
+}
+
+/// §4.5.2: two-step training against training from scratch in density_dense.
+fn transfer_figure(dir: &Path, m: &Measured) -> Result<String> {
+    save_png(&dir.join("transfer.png"), 1000, 520, |root| {
+        root.fill(&WHITE).map_err(pe)?;
+        let mut lines = stage_lines(
+            m,
+            "transfer-density_dense",
+            "two-step (after pretraining)",
+            BLUE,
+            false,
+        );
+        lines.extend(stage_lines(
+            m,
+            "scratch-density_dense",
+            "from scratch",
+            RED,
+            true,
+        ));
+        panel(
+            root,
+            "density_dense: two-step against scratch",
+            "agent steps in density_dense",
+            "reward per decision",
+            &lines,
+            None,
+            SeriesLabelPosition::LowerRight,
+        )
+    })?;
+    Ok("transfer.png".into())
+}
+
+/// Fig. 4.14: PPO against SAC on coho, pretraining and transfer.
+fn ppo_sac_figure(dir: &Path, m: &Measured) -> Result<String> {
+    save_png(&dir.join("ppo_sac.png"), 1400, 520, |root| {
+        root.fill(&WHITE).map_err(pe)?;
+        let cells = root.split_evenly((1, 2));
+        for (k, (p, s, what)) in [
+            ("pretrain-coho", "sac-pretrain-coho", "pretraining"),
+            (
+                "transfer-coho_default",
+                "sac-transfer-coho_default",
+                "transfer learning",
+            ),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let mut lines = stage_lines(m, p, "PPO", BLUE, false);
+            lines.extend(stage_lines(m, s, "SAC", RED, true));
+            panel(
+                &cells[k],
+                &format!("coho {what}: PPO against SAC"),
+                "agent steps",
+                "reward per decision",
+                &lines,
+                None,
+                SeriesLabelPosition::LowerRight,
+            )?;
+        }
+        Ok(())
+    })?;
+    Ok("ppo_sac.png".into())
+}
+
+/// Fig. 4.10: P and M over time in the dense and the sparse cage.
+fn density_figure(dir: &Path, m: &Measured) -> Result<String> {
+    let series = |p: &str, s: &str, k: usize| -> Vec<(f64, f64)> {
+        m.of(p, s)
+            .first()
+            .map(|x| {
+                x.pm.iter()
+                    .map(|q| (q.0 as f64, [q.1, q.2][k] as f64))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    save_png(&dir.join("density_pm.png"), 1400, 480, |root| {
+        root.fill(&WHITE).map_err(pe)?;
+        let cells = root.split_evenly((1, 2));
+        for (k, name) in ["P (polarisation)", "M (milling)"].iter().enumerate() {
+            let lines = vec![
+                Line {
+                    label: "dense (14.7 fish/m³)".into(),
+                    colour: BLUE,
+                    dashed: false,
+                    points: series("transfer-density_dense", "density_dense", k),
+                },
+                Line {
+                    label: "sparse (0.59 fish/m³)".into(),
+                    colour: RED,
+                    dashed: true,
+                    points: series("transfer-density_sparse", "density_sparse", k),
+                },
+            ];
+            // M stays low where P is high: the key goes where the lines are not.
+            let key = if k == 0 {
+                SeriesLabelPosition::MiddleRight
+            } else {
+                SeriesLabelPosition::UpperRight
+            };
+            panel(
+                &cells[k],
+                name,
+                "time (s)",
+                name,
+                &lines,
+                Some((0.0, 1.0)),
+                key,
+            )?;
+        }
+        Ok(())
+    })?;
+    Ok("density_pm.png".into())
+}
+
+/// Depth histograms per size class (layers) and per species.
+fn depth_figures(
+    dir: &Path,
+    m: &Measured,
+    has: &dyn Fn(&str) -> bool,
+    figures: &mut Figures,
+) -> Result<()> {
     for (id, policy, scene, file) in [
         (
             "layers",
@@ -370,7 +420,17 @@ pub fn write_report(
         })?;
         figures.push((id, file.into()));
     }
-    // Trajectory plots (top view, the evaluation of the first seeds).
+    Ok(())
+}
+
+/// Trajectory plots (top view, the evaluation of the first seeds), copied
+/// from the evaluations.
+fn trajectory_figures(
+    dir: &Path,
+    m: &Measured,
+    has: &dyn Fn(&str) -> bool,
+    figures: &mut Figures,
+) -> Result<()> {
     let traj: &[(&str, &str, &str)] = &[
         ("density", "transfer-density_sparse", "density_sparse"),
         ("density", "transfer-density_dense", "density_dense"),
@@ -409,9 +469,13 @@ pub fn write_report(
         }
     }
 
-    // CSVs.
+    Ok(())
+}
+
+/// `claims.csv`: one row per claim with its verdict.
+fn claims_csv(r: &Report<'_>) -> Result<String> {
     let mut claims_csv = String::from("claim,verdict,summary\n");
-    for (c, v) in claims.iter().zip(verdicts) {
+    for (c, v) in r.claims.iter().zip(r.verdicts) {
         writeln!(
             claims_csv,
             "{},{},\"{}\"",
@@ -420,7 +484,11 @@ pub fn write_report(
             v.summary.replace('"', "'")
         )?;
     }
-    write_atomic(dir.join("claims.csv"), claims_csv.as_bytes())?;
+    Ok(claims_csv)
+}
+
+/// `stages.csv`: one row per training stage and seed.
+fn stages_csv(records: &[(u64, StageRecord)]) -> Result<String> {
     let mut stages_csv = String::from(
         "train_seed,stage,scene,algo,phase,budget_per_behaviour,agent_steps,wall_seconds,agent_steps_per_second\n",
     );
@@ -443,7 +511,11 @@ pub fn write_report(
             r.agent_steps as f64 / r.wall_seconds.max(1e-9)
         )?;
     }
-    write_atomic(dir.join("stages.csv"), stages_csv.as_bytes())?;
+    Ok(stages_csv)
+}
+
+/// `measurements.csv`: one row per evaluation.
+fn measurements_csv(m: &Measured) -> Result<String> {
     let mut meas = String::from(
         "policy,scene,train_seed,eval_seed,p,m,swarm,milling,polarised,transitional,nn_bl,speed_bl_s,boundary_per_fish_h,neighbour_per_fish_h,reward_per_decision,axis_distance_m,axis_distance_rel,cage_rotation,chases_started,chase_contact,chase_lost_sight,chase_boundary,chase_timeout,fish_hours\n",
     );
@@ -484,7 +556,11 @@ pub fn write_report(
             x.fish_hours
         )?;
     }
-    write_atomic(dir.join("measurements.csv"), meas.as_bytes())?;
+    Ok(meas)
+}
+
+/// `curves.csv`: the learning curves.
+fn curves_csv(m: &Measured) -> Result<String> {
     let mut curves = String::from("stage,train_seed,behaviour,tag,step,value\n");
     for c in &m.curves {
         for (s, v) in &c.points {
@@ -495,10 +571,13 @@ pub fn write_report(
             )?;
         }
     }
-    write_atomic(dir.join("curves.csv"), curves.as_bytes())?;
 
-    // REPORT.md.
-    let mut md = String::new();
+    Ok(curves)
+}
+
+/// REPORT.md's title, profile and command.
+fn report_header(md: &mut String, r: &Report<'_>) -> Result<()> {
+    let (profile, args) = (r.profile, r.args);
     writeln!(md, "# Reproducing DeepFoids (thesis §4.5)\n")?;
     let commit = git_commit();
     writeln!(
@@ -514,11 +593,11 @@ pub fn write_report(
         profile.eval_seeds,
         profile.warmup,
         profile.seconds,
-        total_seconds
+        r.total_seconds
     )?;
     writeln!(
         md,
-        "Command: `deepfoids reproduce --profile {} --out {}{}`. Each criterion below was written into `src/commands/reproduce/claims.rs` before the runs; values are mean ± standard deviation over training × evaluation seeds.\n",
+        "Command: `deepfoids reproduce --profile {} --out {}{}`. Each criterion below was written into `experiments/src/reproduce/claims.rs` before the runs; values are mean ± standard deviation over training × evaluation seeds.\n",
         format!("{:?}", profile.name).to_lowercase(),
         args.out.display(),
         if args.only.is_empty() {
@@ -527,11 +606,16 @@ pub fn write_report(
             format!(" --only {}", args.only.join(","))
         }
     )?;
+    Ok(())
+}
+
+/// REPORT.md's verdict table, then each claim with its values and figures.
+fn report_claims(md: &mut String, r: &Report<'_>, figures: &Figures) -> Result<()> {
     writeln!(
         md,
         "## Verdicts\n\n| claim | thesis | criterion | measured | verdict |\n|---|---|---|---|---|"
     )?;
-    for (c, v) in claims.iter().zip(verdicts) {
+    for (c, v) in r.claims.iter().zip(r.verdicts) {
         writeln!(
             md,
             "| {} | {} | {} | {} | **{}** |",
@@ -542,7 +626,7 @@ pub fn write_report(
             v.verdict()
         )?;
     }
-    for (c, v) in claims.iter().zip(verdicts) {
+    for (c, v) in r.claims.iter().zip(r.verdicts) {
         writeln!(
             md,
             "\n## {}: {}\n\nCriterion: {}\n\nVerdict: **{}**.\n",
@@ -562,6 +646,11 @@ pub fn write_report(
             writeln!(md, "![{f}]({f})\n")?;
         }
     }
+    Ok(())
+}
+
+/// REPORT.md's table of stages and the total training time.
+fn report_stages(md: &mut String, records: &[(u64, StageRecord)]) -> Result<()> {
     writeln!(
         md,
         "\n## Stages\n\n| seed | stage | scene | algo | phase | budget per behaviour | agent steps | wall time | agent-steps/s |\n|---|---|---|---|---|---|---|---|---|"
@@ -596,7 +685,6 @@ pub fn write_report(
         total,
         total / 3600.0
     )?;
-    write_atomic(dir.join("REPORT.md"), md.as_bytes())?;
     Ok(())
 }
 

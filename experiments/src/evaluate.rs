@@ -1,13 +1,12 @@
 //! Evaluating a school and writing what `eval` reports: `metrics.csv`,
 //! `summary.json`, and the P/M, depth and trajectory plots.
 
-use crate::cli::{PolicyArgs, SceneArgs};
-use crate::io::{AtomicFile, write_atomic};
 use crate::plot::{FONT, pe, save_png};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{Env, Policy};
+use deepfoids_io::{AtomicFile, write_atomic};
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -120,46 +119,6 @@ pub struct RunArgs {
     pub warmup: f64,
     /// Simulated seconds.
     pub seconds: f64,
-}
-
-impl RunArgs {
-    /// The values of `scene` and `policy` options as the commands parse them.
-    pub fn new(
-        scene: &SceneArgs,
-        policy: &str,
-        opts: &PolicyArgs,
-        warmup: f64,
-        seconds: f64,
-    ) -> Self {
-        Self {
-            scene: scene.scene.clone(),
-            phase: scene.phase.as_str().to_string(),
-            seed: scene.seed,
-            policy: policy.to_string(),
-            checkpoint: opts.checkpoint,
-            stochastic: opts.stochastic,
-            warmup,
-            seconds,
-        }
-    }
-
-    /// Back to the options, for loading the scene and policy again.
-    pub fn options(&self) -> Result<(SceneArgs, PolicyArgs)> {
-        Ok((
-            SceneArgs {
-                scene: self.scene.clone(),
-                seed: self.seed,
-                phase: self
-                    .phase
-                    .parse()
-                    .map_err(|e| anyhow::anyhow!("phase `{}`: {e}", self.phase))?,
-            },
-            PolicyArgs {
-                checkpoint: self.checkpoint,
-                stochastic: self.stochastic,
-            },
-        ))
-    }
 }
 
 /// Write `metrics.csv`, `summary.json`, `pm.png`, `depth.png` and `trajectories.png` to `dir`.
@@ -339,26 +298,21 @@ fn plot_pm(path: &Path, eval: &Evaluation, s: &Summary, title: &str) -> Result<(
                 .label(label)
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
         }
-        chart
-            .draw_series(LineSeries::new(
-                samples.iter().map(|x| (x.t as f32, x.p)),
-                PALETTE[0].stroke_width(2),
-            ))
-            .map_err(pe)?
-            .label("P (polarisation)")
-            .legend(|(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], PALETTE[0].stroke_width(2))
-            });
-        chart
-            .draw_series(LineSeries::new(
-                samples.iter().map(|x| (x.t as f32, x.m)),
-                PALETTE[1].stroke_width(2),
-            ))
-            .map_err(pe)?
-            .label("M (milling)")
-            .legend(|(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], PALETTE[1].stroke_width(2))
-            });
+        for (k, label) in ["P (polarisation)", "M (milling)"].into_iter().enumerate() {
+            let colour = PALETTE[k];
+            chart
+                .draw_series(LineSeries::new(
+                    samples
+                        .iter()
+                        .map(|x| (x.t as f32, if k == 0 { x.p } else { x.m })),
+                    colour.stroke_width(2),
+                ))
+                .map_err(pe)?
+                .label(label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
+        }
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::MiddleRight)

@@ -2,9 +2,8 @@
 //! policies (and of Boids) in their scenes, each cached as JSON beside the
 //! runs, and the learning curves read back from each stage's `scalars.csv`.
 
-use super::claims::Claim;
 use super::{Profile, Stage};
-use crate::report::{EvalMeta, RunArgs, evaluate, write_outputs};
+use crate::evaluate::{EvalMeta, RunArgs, evaluate, write_outputs};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::world::Chase;
@@ -194,25 +193,19 @@ pub const CURVE_TAGS: [&str; 2] = [
     "Environment/Cumulative Reward",
 ];
 
-/// Evaluate every (policy, scene) the claims name, for every training and
-/// evaluation seed, reusing cached measurements; read the learning curves.
+/// Evaluate every (policy, scene) of `wanted`, for every training and
+/// evaluation seed, reusing cached measurements; read the learning curves of
+/// `stages`.
 pub fn measure_all(
     dirs: &ConfigDirs,
     profile: &Profile,
-    claims: &[&Claim],
+    wanted: &[(&str, &str)],
+    stages: &[Stage],
     out: &Path,
 ) -> Result<Measured> {
-    let mut wanted: Vec<(&str, &str)> = Vec::new();
-    for c in claims {
-        for e in c.evals {
-            if !wanted.contains(e) {
-                wanted.push(*e);
-            }
-        }
-    }
     let mut measurements = Vec::new();
     let mut eval_dirs = Vec::new();
-    for &(policy, scene) in &wanted {
+    for &(policy, scene) in wanted {
         let baseline = !policy.contains('-');
         // A baseline does not depend on the training seed: measured once.
         let train_seeds: Vec<u64> = if baseline {
@@ -235,7 +228,7 @@ pub fn measure_all(
     }
     let mut curves = Vec::new();
     for &ts in &profile.seeds {
-        for stage in super::stages_for(claims) {
+        for stage in stages {
             let path = out
                 .join(format!("s{ts}"))
                 .join(&stage.name)
@@ -295,20 +288,17 @@ pub fn measure_one(
     {
         return Ok((m, eval_dir));
     }
-    let scene = super::load_scene(dirs, scene_id, phase)?;
+    let scene = crate::load_scene(dirs, scene_id, phase)?;
     let env_seed = ENV_SEED_BASE + 1000 * es + ts;
     let mut env = Env::new(scene, env_seed);
     let mut pol: Box<dyn deepfoids_env::Policy> = match &policy_path {
-        Some(d) => Box::new(super::super::load_trained(d, None, &env, true, ts)?),
-        None => super::super::make_policy(
+        Some(d) => Box::new(crate::load_trained(d, None, &env, true, ts)?),
+        None => crate::make_policy(
             dirs,
             policy,
             env_seed,
             &env,
-            &crate::cli::PolicyArgs {
-                checkpoint: None,
-                stochastic: false,
-            },
+            &crate::PolicyOptions::default(),
         )?,
     };
     eprintln!("measuring {policy} in {scene_id} (training seed {ts}, evaluation seed {es})");
@@ -356,7 +346,7 @@ pub fn measure_one(
         want_stamp,
         &eval.recorder.samples,
     );
-    crate::io::write_atomic(&cache, serde_json::to_string_pretty(&m)?.as_bytes())?;
+    deepfoids_io::write_atomic(&cache, serde_json::to_string_pretty(&m)?.as_bytes())?;
     Ok((m, eval_dir))
 }
 

@@ -15,20 +15,85 @@
 //! add minutes of build and a container writer for a clip. `gif` is pure Rust
 //! and already in the dependency tree.
 
-use crate::plot::{FONT, init_fonts, pe};
-use anyhow::{Context, Result, bail};
-use deepfoids_replay::Recording;
-use deepfoids_replay::recording::{COLOURS, colour};
+use crate::Recording;
+use crate::recording::{COLOURS, colour};
 use glam::{Vec2, Vec3};
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+/// Why a clip could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ClipError {
+    /// A size or speed out of range, or a clip too large for GIF.
+    #[error("{0}")]
+    Invalid(String),
+    #[error("cannot create {}", path.display())]
+    CreateDir {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// Writing the file (the message names it).
+    #[error(transparent)]
+    Write(#[from] std::io::Error),
+    /// The encoder's error (not a source: the message already holds it).
+    #[error("GIF: {0}")]
+    Gif(gif::EncodingError),
+    #[error("plotting failed: {0}")]
+    Plot(String),
+}
+
+type Result<T, E = ClipError> = std::result::Result<T, E>;
 
 /// Which views a clip shows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GifView {
     Top,
     Side,
     Both,
+}
+
+impl GifView {
+    /// Every view, by name.
+    pub const ALL: [(&'static str, GifView); 3] = [
+        ("top", GifView::Top),
+        ("side", GifView::Side),
+        ("both", GifView::Both),
+    ];
+}
+
+impl std::str::FromStr for GifView {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .iter()
+            .find(|(name, _)| *name == s)
+            .map(|(_, v)| *v)
+            .ok_or_else(|| format!("unknown view `{s}`; allowed: top, side, both"))
+    }
+}
+
+/// The font family name the clips use.
+const FONT: &str = "sans-serif";
+
+static FONTS: Once = Once::new();
+
+/// Register the embedded font (DejaVu Sans, so text renders on a bare machine
+/// without system fonts); idempotent.
+fn init_fonts() {
+    FONTS.call_once(|| {
+        for style in [FontStyle::Normal, FontStyle::Bold] {
+            // The bytes are a valid TrueType font shipped by the `dejavu` crate.
+            let _ = plotters::style::register_font(FONT, style, dejavu::sans::regular());
+        }
+    });
+}
+
+/// A plotters error as a clip error.
+fn pe<E: std::fmt::Debug>(e: E) -> ClipError {
+    ClipError::Plot(format!("{e:?}"))
 }
 
 const WATER: [u8; 3] = [11, 34, 54];
@@ -177,17 +242,23 @@ pub fn write_gif(
     speed: f64,
 ) -> Result<usize> {
     if !(64..=4096).contains(&size) {
-        bail!("--gif-size must be 64 to 4096 pixels, got {size}");
+        return Err(ClipError::Invalid(format!(
+            "--gif-size must be 64 to 4096 pixels, got {size}"
+        )));
     }
     if !(speed > 0.0 && speed.is_finite()) {
-        bail!("--gif-speed must be a positive number, got {speed}");
+        return Err(ClipError::Invalid(format!(
+            "--gif-speed must be a positive number, got {speed}"
+        )));
     }
     let bytes = gif_bytes(rec, view, size, speed)?;
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("cannot create {}", parent.display()))?;
+        std::fs::create_dir_all(parent).map_err(|source| ClipError::CreateDir {
+            path: parent.to_path_buf(),
+            source,
+        })?;
     }
-    crate::io::write_atomic(path, &bytes)?;
+    deepfoids_io::write_atomic(path, &bytes)?;
     Ok(bytes.len())
 }
 
@@ -235,7 +306,9 @@ pub fn gif_bytes(rec: &Recording, view: GifView, size: u32, speed: f64) -> Resul
     let width = x.max(360);
     let height_px = HEADER + 2 * PAD + panels.iter().map(|p| p.size.1).max().unwrap_or(0);
     if width > u16::MAX as i32 || height_px > u16::MAX as i32 {
-        bail!("a {width} × {height_px} px GIF is too large; lower --gif-size");
+        return Err(ClipError::Invalid(format!(
+            "a {width} × {height_px} px GIF is too large; lower --gif-size"
+        )));
     }
     let (w, h) = (width as u32, height_px as u32);
 
@@ -244,10 +317,10 @@ pub fn gif_bytes(rec: &Recording, view: GifView, size: u32, speed: f64) -> Resul
     let flat: Vec<u8> = pal.iter().flatten().copied().collect();
     let mut out = Vec::new();
     {
-        let mut enc = gif::Encoder::new(&mut out, w as u16, h as u16, &flat)
-            .map_err(|e| anyhow::anyhow!("GIF: {e}"))?;
+        let mut enc =
+            gif::Encoder::new(&mut out, w as u16, h as u16, &flat).map_err(ClipError::Gif)?;
         enc.set_repeat(gif::Repeat::Infinite)
-            .map_err(|e| anyhow::anyhow!("GIF: {e}"))?;
+            .map_err(ClipError::Gif)?;
         let mut rgb = vec![0u8; (w * h * 3) as usize];
         let mut prev: Option<Vec<u8>> = None;
         let mut shown_cs = 0u64; // centiseconds of GIF time written so far
@@ -270,8 +343,7 @@ pub fn gif_bytes(rec: &Recording, view: GifView, size: u32, speed: f64) -> Resul
             let delay = (until - shown_cs).min(u16::MAX as u64) as u16;
             shown_cs += delay as u64;
             let frame = delta_frame(&idx, prev.as_deref(), w as usize, h as usize, delay);
-            enc.write_frame(&frame)
-                .map_err(|e| anyhow::anyhow!("GIF: {e}"))?;
+            enc.write_frame(&frame).map_err(ClipError::Gif)?;
             prev = Some(idx);
         }
     }
@@ -490,9 +562,9 @@ fn draw_frame(
 fn draw_obstacle<DB: DrawingBackend>(
     root: &DrawingArea<DB, plotters::coord::Shift>,
     panel: &Panel,
-    o: &deepfoids_replay::recording::ObstacleShape,
+    o: &crate::recording::ObstacleShape,
 ) -> Result<()> {
-    use deepfoids_replay::recording::ObstacleShape as O;
+    use crate::recording::ObstacleShape as O;
     let fill = rgb(OBSTACLE).filled();
     let r_px = |r: f32| (r * panel.scale).round() as i32;
     match *o {

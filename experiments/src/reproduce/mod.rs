@@ -19,54 +19,64 @@ mod figures;
 mod measure;
 pub mod ship;
 
-use super::load_scene;
-use super::train::train_scene;
-use crate::cli::{Algo, TrainOptions};
+use crate::load_scene;
+use crate::training::{TrainOptions, train_scene};
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
 use deepfoids_env::{ConfigDirs, Phase};
+use deepfoids_learn::Algorithm;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 pub use claims::CLAIMS;
 
-#[derive(Args, Debug, Clone)]
-pub struct ReproduceArgs {
+/// What to reproduce and where (the options of `deepfoids reproduce`).
+#[derive(Debug, Clone)]
+pub struct ReproduceOptions {
     /// Budgets: `full` (the thesis': coho 4 M + 1 M, yellowtail and seabream
-    /// 2 M + 2 M, SAC on coho 4 M + 1 M) or `quick` (a tenth of them)
-    #[arg(long, value_enum, default_value = "full")]
+    /// 2 M + 2 M, SAC on coho 4 M + 1 M) or `quick` (a tenth of them).
     pub profile: ProfileName,
-    /// Only these claims (comma-separated), and the stages they need
-    /// [default: every claim]; see the README for the list
-    #[arg(long, value_delimiter = ',', value_name = "CLAIM")]
+    /// Only these claims, and the stages they need (empty: every claim).
     pub only: Vec<String>,
-    /// Output folder: the runs (s<seed>/<stage>) and report/
-    #[arg(long, value_name = "DIR")]
+    /// Output folder: the runs (`s<seed>/<stage>`) and `report/`.
     pub out: PathBuf,
-    /// Training seeds [default: the profile's]
-    #[arg(long, value_delimiter = ',')]
+    /// Training seeds (empty: the profile's).
     pub seeds: Vec<u64>,
-    /// Scale every training budget by this factor (tests; the report says so)
-    #[arg(long, default_value_t = 1.0, hide = true)]
+    /// Scale every training budget by this factor, in (0, 1] (tests; the
+    /// report says so).
     pub budget_scale: f64,
-    /// Scale the evaluation's simulated seconds by this factor (tests)
-    #[arg(long, default_value_t = 1.0, hide = true)]
+    /// Scale the evaluation's simulated seconds by this factor, in (0, 1] (tests).
     pub eval_scale: f64,
     /// After the report, copy each species' transferred default policy with a
-    /// model card into this folder (`policies` ships them with the repository)
-    #[arg(long, value_name = "DIR")]
+    /// model card into this folder (`policies` ships them with the repository).
     pub ship: Option<PathBuf>,
-    /// No progress bars or progress lines while training
-    #[arg(long)]
+    /// No progress bars or progress lines while training.
     pub quiet: bool,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ProfileName {
     Full,
     Quick,
+}
+
+impl ProfileName {
+    /// Every profile, by name.
+    pub const ALL: [(&'static str, ProfileName); 2] =
+        [("full", ProfileName::Full), ("quick", ProfileName::Quick)];
+}
+
+impl std::str::FromStr for ProfileName {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        Self::ALL
+            .iter()
+            .find(|(name, _)| *name == s)
+            .map(|(_, p)| *p)
+            .ok_or_else(|| format!("unknown profile `{s}`; allowed: full, quick"))
+    }
 }
 
 /// Budgets and evaluation lengths of one profile.
@@ -136,7 +146,7 @@ pub struct Stage {
     pub name: String,
     pub scene: String,
     pub phase: Phase,
-    pub algo: Algo,
+    pub algo: Algorithm,
     /// Stages whose final policies this one starts from.
     pub init_from: Vec<String>,
 }
@@ -147,7 +157,7 @@ impl Stage {
             name: format!("pretrain-{species}"),
             scene: format!("{species}_default"),
             phase: Phase::Pretrain,
-            algo: Algo::Ppo,
+            algo: Algorithm::Ppo,
             init_from: vec![],
         }
     }
@@ -157,7 +167,7 @@ impl Stage {
             name: format!("transfer-{scene}"),
             scene: scene.to_string(),
             phase: Phase::Transfer,
-            algo: Algo::Ppo,
+            algo: Algorithm::Ppo,
             init_from: species.iter().map(|s| format!("pretrain-{s}")).collect(),
         }
     }
@@ -169,7 +179,7 @@ impl Stage {
             name: format!("scratch-{scene}"),
             scene: scene.to_string(),
             phase: Phase::Transfer,
-            algo: Algo::Ppo,
+            algo: Algorithm::Ppo,
             init_from: vec![],
         }
     }
@@ -180,10 +190,10 @@ impl Stage {
     pub fn all() -> Vec<Stage> {
         let mut sac_pre = Stage::pretrain("coho");
         sac_pre.name = "sac-pretrain-coho".into();
-        sac_pre.algo = Algo::Sac;
+        sac_pre.algo = Algorithm::Sac;
         let mut sac_tr = Stage::transfer("coho_default", &["coho"]);
         sac_tr.name = "sac-transfer-coho_default".into();
-        sac_tr.algo = Algo::Sac;
+        sac_tr.algo = Algorithm::Sac;
         sac_tr.init_from = vec!["sac-pretrain-coho".into()];
         vec![
             Stage::pretrain("coho"),
@@ -262,7 +272,7 @@ pub struct StageRecord {
     pub timed: bool,
 }
 
-pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
+pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
     let start = Instant::now();
     let mut profile = Profile::new(args.profile);
     if !args.seeds.is_empty() {
@@ -294,7 +304,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
     let stages = stages_for(&needs);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let _lock = crate::io::lock_dir(&args.out)?;
+    let _lock = crate::lock_dir(&args.out)?;
     eprintln!(
         "reproduce ({:?}): claims {}; stages {}; training seeds {:?}",
         profile.name,
@@ -314,17 +324,28 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
         }
     }
     eprintln!("training done; measuring");
-    let measured = measure::measure_all(dirs, &profile, &chosen, &args.out)?;
+    // Every (policy, scene) the chosen claims name, once each.
+    let mut wanted: Vec<(&str, &str)> = Vec::new();
+    for c in &chosen {
+        for e in c.evals {
+            if !wanted.contains(e) {
+                wanted.push(*e);
+            }
+        }
+    }
+    let measured = measure::measure_all(dirs, &profile, &wanted, &stages_for(&chosen), &args.out)?;
     let verdicts: Vec<claims::Verdict> = chosen.iter().map(|c| (c.judge)(&measured)).collect();
     figures::write_report(
         &args.out.join("report"),
-        &profile,
-        args,
-        &chosen,
-        &verdicts,
-        &records,
-        &measured,
-        start.elapsed().as_secs_f64(),
+        &figures::Report {
+            profile: &profile,
+            args,
+            claims: &chosen,
+            verdicts: &verdicts,
+            records: &records,
+            measured: &measured,
+            total_seconds: start.elapsed().as_secs_f64(),
+        },
     )?;
     println!("\n| claim | verdict | measured |\n|---|---|---|");
     for (c, v) in chosen.iter().zip(&verdicts) {
@@ -347,7 +368,7 @@ fn run_stage(
     stage: &Stage,
     root: &Path,
     seed: u64,
-    args: &ReproduceArgs,
+    args: &ReproduceOptions,
 ) -> Result<StageRecord> {
     let dir = root.join(&stage.name);
     let record_path = dir.join("reproduce.json");
@@ -362,7 +383,7 @@ fn run_stage(
         .unwrap_or_else(|| StageRecord {
             stage: stage.name.clone(),
             scene: stage.scene.clone(),
-            algo: super::train::algo_name(stage.algo).into(),
+            algo: stage.algo.as_str().into(),
             phase: stage.phase.as_str().into(),
             budgets: budgets.clone(),
             ..Default::default()
@@ -382,7 +403,7 @@ fn run_stage(
         );
         return Ok(record);
     }
-    let _lock = crate::io::lock_dir(&dir)?;
+    let _lock = crate::lock_dir(&dir)?;
     let resume = !deepfoids_learn::checkpoint::checkpoints(&dir).is_empty();
     if !resume && dir.exists() {
         // Stopped before its first checkpoint: start it again from nothing.
@@ -439,7 +460,7 @@ fn run_stage(
     } + t0.elapsed().as_secs_f64();
     record.agent_steps = trained.outcome.agent_steps;
     record.timed = true;
-    crate::io::write_atomic(
+    deepfoids_io::write_atomic(
         &record_path,
         serde_json::to_string_pretty(&record)?.as_bytes(),
     )?;
