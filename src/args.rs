@@ -30,8 +30,12 @@ pub struct PolicyArgs {
     /// With a run folder: load this checkpoint step instead of the final policy
     #[arg(long, value_name = "STEP")]
     pub checkpoint: Option<u64>,
-    /// With a run folder: sample actions instead of acting with the clipped mean
+    /// Act with the policy's mean (clipped) instead of sampling from it; sampled
+    /// actions are the default, as Unity ML-Agents 1.x inference (the thesis') did
     #[arg(long)]
+    pub deterministic: bool,
+    /// Sample actions (the default; kept so that older scripts still run)
+    #[arg(long, hide = true, conflicts_with = "deterministic")]
     pub stochastic: bool,
 }
 
@@ -39,7 +43,7 @@ impl PolicyArgs {
     pub fn options(&self) -> PolicyOptions {
         PolicyOptions {
             checkpoint: self.checkpoint,
-            stochastic: self.stochastic,
+            stochastic: !self.deterministic,
         }
     }
 }
@@ -59,7 +63,7 @@ pub struct TrainOptionArgs {
     /// Compute backend of the training (acting runs on the hand-written kernels)
     #[arg(long, default_value = "flex", value_parser = parse_backend)]
     pub backend: Backend,
-    /// Simulated seconds of the deterministic evaluation after training (0: none)
+    /// Simulated seconds of the evaluation after training, with sampled actions (0: none)
     #[arg(long, default_value_t = 30.0)]
     pub eval_seconds: f64,
     /// No progress bar and no progress lines
@@ -95,7 +99,7 @@ pub fn rerun(
         seed: scene.seed,
         policy: policy.to_string(),
         checkpoint: opts.checkpoint,
-        stochastic: opts.stochastic,
+        stochastic: !opts.deterministic,
         warmup,
         seconds,
     }
@@ -114,7 +118,8 @@ pub fn from_rerun(run: &RunArgs) -> anyhow::Result<(SceneArgs, PolicyArgs)> {
         },
         PolicyArgs {
             checkpoint: run.checkpoint,
-            stochastic: run.stochastic,
+            deterministic: !run.stochastic,
+            stochastic: false,
         },
     ))
 }

@@ -20,7 +20,7 @@ for summary in sorted(root.glob("eval-*/summary.json")):
     m = pattern.match(summary.parent.name)
     if not m:
         continue
-    s = json.loads(summary.read_text())
+    s = json.loads(summary.read_text())["summary"]
     rows[(m["run"], m["scene"])].append(s)
 
 

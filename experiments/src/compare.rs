@@ -7,7 +7,7 @@
 //! * `reward_terms.png`: the reward per decision and each of its seven terms,
 //!   one panel each, the same way;
 //! * `compare.md` and `compare.csv`: every run's final policy evaluated
-//!   deterministically in the same scene and seeds — mean reward and each term
+//!   with sampled actions (or their means) in the same scene and seeds — mean reward and each term
 //!   per decision, P, M, state shares, collisions per fish-hour, nearest-neighbour
 //!   distance — with the training's wall-clock time and agent-steps/s.
 
@@ -40,6 +40,8 @@ pub struct CompareOptions {
     pub smoothing: f64,
     /// Output folder.
     pub out: PathBuf,
+    /// Evaluate with the policies' means instead of sampled actions (SPEC §9).
+    pub deterministic: bool,
 }
 
 /// Logged scalars: `(behaviour, tag)` → `(step, value)` in logging order.
@@ -194,7 +196,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareOptions) -> Result<()> {
         let mut summaries = Vec::new();
         for seed in 0..args.seeds {
             let mut env = Env::new(scene.clone(), seed);
-            let mut policy = load_trained(&r.dir, None, &env, true, seed)?;
+            let mut policy = load_trained(&r.dir, None, &env, args.deterministic, seed)?;
             let eval = evaluate(&mut env, &mut policy, 0.0, args.seconds, |_, _, _| {})?;
             summaries.push(eval.recorder.summary(eval.seconds));
         }
@@ -338,7 +340,12 @@ fn table(runs: &[Run], rows: &[Row], scene: &str, args: &CompareOptions) -> (Str
                 .join(",")
         );
     }
-    md.push_str("\nP and M: mean ± spread over seeds. Rewards are per agent decision, with the weights of the first run's phase.\n");
+    md.push_str(if args.deterministic {
+        "\nEvaluated with the policies' means (deterministic). "
+    } else {
+        "\nEvaluated with sampled actions (as Unity ML-Agents 1.x inference). "
+    });
+    md.push_str("P and M: mean ± spread over seeds. Rewards are per agent decision, with the weights of the first run's phase.\n");
     (md, csv)
 }
 

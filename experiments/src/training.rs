@@ -243,7 +243,8 @@ fn print_training(o: &TrainOutcome) {
     }
 }
 
-/// Evaluate a run's final policy deterministically; writes `<run>/eval/`.
+/// Evaluate a run's final policy with sampled actions (SPEC §9; the
+/// environment's seed also seeds the sampling); writes `<run>/eval/`.
 pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
     let env_seed = opts.seed.wrapping_add(1_000_003);
     let rerun = EvalRunArgs {
@@ -252,12 +253,12 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
         seed: env_seed,
         policy: run_dir.display().to_string(),
         checkpoint: None,
-        stochastic: false,
+        stochastic: true,
         warmup: 0.0,
         seconds: opts.eval_seconds,
     };
     let mut env = Env::new(scene, env_seed);
-    let mut policy = load_trained(run_dir, None, &env, true, opts.seed)?;
+    let mut policy = load_trained(run_dir, None, &env, false, env_seed)?;
     let eval = evaluate(&mut env, &mut policy, 0.0, opts.eval_seconds, |_, _, _| {})?;
     let scene_id = env.scene().id.clone();
     let name = policy.name();
@@ -266,7 +267,7 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
         policy: &name,
         seed: opts.seed,
         phase: env.scene().phase.as_str(),
-        deterministic: true,
+        deterministic: false,
         warmup: 0.0,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,

@@ -28,6 +28,9 @@ pub struct CompareArgs {
     /// Output folder
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// Evaluate with the policies' means instead of sampled actions (the default, as Unity's inference did)
+    #[arg(long)]
+    pub deterministic: bool,
 }
 
 pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
@@ -40,6 +43,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareArgs) -> Result<()> {
             seeds: args.seeds,
             smoothing: args.smoothing,
             out: args.out.clone(),
+            deterministic: args.deterministic,
         },
     )
 }

@@ -98,7 +98,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         policy: &name,
         seed: sa.seed,
         phase: sa.phase.as_str(),
-        deterministic: !args.policy_args.stochastic,
+        deterministic: args.policy_args.deterministic,
         warmup: args.warmup,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,

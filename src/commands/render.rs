@@ -214,7 +214,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         "camera": args.camera.as_str(), "width": args.width, "height": args.height,
         "randomize": args.randomize, "clip_frames": clip_frames, "warmup": args.warmup,
         "seed": seed, "format": args.format.ext(), "phase": args.scene.phase.as_str(),
-        "stochastic": args.policy_args.stochastic, "checkpoint": args.policy_args.checkpoint,
+        "stochastic": !args.policy_args.deterministic, "checkpoint": args.policy_args.checkpoint,
     });
     let optics: Vec<_> = clips
         .iter()
@@ -339,6 +339,7 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
     let clip = ClipParams::from_scene(&scene, 0, args.seed, args.camera);
     let pa = PolicyArgs {
         checkpoint: None,
+        deterministic: false,
         stochastic: false,
     };
     let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa)?;

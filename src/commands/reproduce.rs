@@ -37,6 +37,9 @@ pub struct ReproduceArgs {
     /// No progress bars or progress lines while training
     #[arg(long)]
     pub quiet: bool,
+    /// Evaluate with the policies' means instead of sampled actions (the default, as Unity's inference did)
+    #[arg(long)]
+    pub deterministic: bool,
 }
 
 /// `--profile`: full or quick, listed in `--help` and in the error.
@@ -57,6 +60,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
             eval_scale: args.eval_scale,
             ship: args.ship.clone(),
             quiet: args.quiet,
+            deterministic: args.deterministic,
         },
     )
 }

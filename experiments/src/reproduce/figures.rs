@@ -167,6 +167,8 @@ pub struct Report<'a> {
     pub verdicts: &'a [Verdict],
     pub records: &'a [(u64, StageRecord)],
     pub measured: &'a Measured,
+    /// The reward profile the stages were trained and evaluated with.
+    pub reward_profile: &'a str,
     /// Wall seconds of this invocation.
     pub total_seconds: f64,
 }
@@ -582,15 +584,21 @@ fn report_header(md: &mut String, r: &Report<'_>) -> Result<()> {
     let commit = git_commit();
     writeln!(
         md,
-        "Profile **{:?}**{}; training seeds {:?}; evaluation seeds {:?} per trained policy (deterministic policy, {:.0} s warm-up then {:.0} s recorded). Built from commit `{commit}`. Total time of this invocation: {:.0} s (stages reused from earlier invocations count in the stage table, not here).\n",
+        "Profile **{:?}**{}, reward profile `{}`; training seeds {:?}; evaluation seeds {:?} per trained policy ({}, {:.0} s warm-up then {:.0} s recorded). Built from commit `{commit}`. Total time of this invocation: {:.0} s (stages reused from earlier invocations count in the stage table, not here).\n",
         profile.name,
         if args.budget_scale < 1.0 {
             format!(" with every budget × {}", args.budget_scale)
         } else {
             String::new()
         },
+        r.reward_profile,
         profile.seeds,
         profile.eval_seeds,
+        if profile.deterministic {
+            "deterministic policy: the mean action"
+        } else {
+            "sampled actions, as Unity ML-Agents 1.x inference"
+        },
         profile.warmup,
         profile.seconds,
         r.total_seconds

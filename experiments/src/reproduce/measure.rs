@@ -273,7 +273,13 @@ pub fn measure_one(
         let d = policy_dir(out, policy, ts);
         (d.join("measure"), Some(d), stage.phase)
     };
-    let key = format!("{policy}@{scene_id}-e{es}");
+    // Sampled evaluations (the default) are cached apart from deterministic ones.
+    let mode = if profile.deterministic {
+        ""
+    } else {
+        "-sampled"
+    };
+    let key = format!("{policy}@{scene_id}-e{es}{mode}");
     let cache = cache_dir.join(format!("{key}.json"));
     let eval_dir = cache_dir.join(&key);
     let want_stamp = policy_path.as_deref().map_or(0, stamp);
@@ -292,13 +298,22 @@ pub fn measure_one(
     let env_seed = ENV_SEED_BASE + 1000 * es + ts;
     let mut env = Env::new(scene, env_seed);
     let mut pol: Box<dyn deepfoids_env::Policy> = match &policy_path {
-        Some(d) => Box::new(crate::load_trained(d, None, &env, true, ts)?),
+        Some(d) => Box::new(crate::load_trained(
+            d,
+            None,
+            &env,
+            profile.deterministic,
+            env_seed,
+        )?),
         None => crate::make_policy(
             dirs,
             policy,
             env_seed,
             &env,
-            &crate::PolicyOptions::default(),
+            &crate::PolicyOptions {
+                checkpoint: None,
+                stochastic: !profile.deterministic,
+            },
         )?,
     };
     eprintln!("measuring {policy} in {scene_id} (training seed {ts}, evaluation seed {es})");
@@ -317,7 +332,7 @@ pub fn measure_one(
         policy: &name,
         seed: env_seed,
         phase: phase.as_str(),
-        deterministic: true,
+        deterministic: profile.deterministic,
         warmup: profile.warmup,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
@@ -330,7 +345,7 @@ pub fn measure_one(
                 .as_ref()
                 .map_or(policy.to_string(), |d| d.display().to_string()),
             checkpoint: None,
-            stochastic: false,
+            stochastic: !profile.deterministic,
             warmup: profile.warmup,
             seconds: profile.seconds,
         },

@@ -52,6 +52,8 @@ pub struct ReproduceOptions {
     pub ship: Option<PathBuf>,
     /// No progress bars or progress lines while training.
     pub quiet: bool,
+    /// Evaluate with the policies' means instead of sampled actions (SPEC §9).
+    pub deterministic: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -92,6 +94,9 @@ pub struct Profile {
     /// Simulated seconds before recording, and recorded.
     pub warmup: f64,
     pub seconds: f64,
+    /// Evaluate with the policies' means instead of sampled actions (SPEC §9:
+    /// sampled, as Unity ML-Agents 1.x did, unless asked).
+    pub deterministic: bool,
 }
 
 impl Profile {
@@ -109,6 +114,7 @@ impl Profile {
                 eval_seeds: vec![0, 1, 2],
                 warmup: 10.0,
                 seconds: 60.0,
+                deterministic: false,
             },
             ProfileName::Quick => Self {
                 name,
@@ -121,6 +127,7 @@ impl Profile {
                 eval_seeds: vec![0, 1],
                 warmup: 10.0,
                 seconds: 30.0,
+                deterministic: false,
             },
         }
     }
@@ -275,6 +282,7 @@ pub struct StageRecord {
 pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
     let start = Instant::now();
     let mut profile = Profile::new(args.profile);
+    profile.deterministic = args.deterministic;
     if !args.seeds.is_empty() {
         profile.seeds = args.seeds.clone();
     }
@@ -344,6 +352,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
             verdicts: &verdicts,
             records: &records,
             measured: &measured,
+            reward_profile: &dirs.reward_profile,
             total_seconds: start.elapsed().as_secs_f64(),
         },
     )?;

@@ -23,16 +23,56 @@ pub struct Figure {
     pub mean: f64,
     pub sd: f64,
     pub floor: f64,
+    /// The largest tolerance (a state share's 3·sd + floor can admit any
+    /// share: capped so that the card's test can fail; issue 21).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cap: Option<f64>,
+    /// The value at the first evaluation seed, which the card's test measures
+    /// again; without it the test compares against the mean.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first: Option<f64>,
 }
+
+/// The cap of a state share's tolerance.
+pub const SHARE_CAP: f64 = 0.3;
 
 impl Figure {
     pub fn tolerance(&self) -> f64 {
-        3.0 * self.sd + self.floor
+        (3.0 * self.sd + self.floor).min(self.cap.unwrap_or(f64::INFINITY))
     }
 
     pub fn admits(&self, x: f64) -> bool {
-        (x - self.mean).abs() <= self.tolerance()
+        (x - self.first.unwrap_or(self.mean)).abs() <= self.tolerance()
     }
+}
+
+/// A card's figures of one evaluation, by name.
+pub fn figure_values(s: &deepfoids_env::metrics::Summary) -> [(&'static str, f64); 11] {
+    let share = |st: SchoolState| {
+        s.state_share
+            .iter()
+            .find(|q| q.0 == st)
+            .map_or(0.0, |q| q.1 as f64)
+    };
+    [
+        ("p", s.p_mean as f64),
+        ("m", s.m_mean as f64),
+        ("speed_bl", s.mean_speed_bl as f64),
+        ("nn_bl", s.nn_mean_bl as f64),
+        (
+            "boundary_per_fish_hour",
+            s.boundary_collisions_per_fish_hour,
+        ),
+        (
+            "neighbour_per_fish_hour",
+            s.neighbour_collisions_per_fish_hour,
+        ),
+        ("reward_per_decision", s.reward_per_decision),
+        ("swarm", share(SchoolState::Swarm)),
+        ("milling", share(SchoolState::Milling)),
+        ("polarised", share(SchoolState::Polarised)),
+        ("transitional", share(SchoolState::Transitional)),
+    ]
 }
 
 /// The machine-readable model card.
@@ -50,17 +90,38 @@ pub struct Card {
     pub warmup: f64,
     pub seconds: f64,
     pub commit: String,
+    /// The reward profile it was trained and evaluated with (cards from before
+    /// profiles existed: `legacy`, the per-decision reading).
+    #[serde(default = "legacy_profile")]
+    pub reward_profile: String,
+    /// How it was evaluated: `sampled` actions (SPEC §9) or `deterministic`
+    /// (the mean; cards from before sampled evaluation became the default).
+    #[serde(default = "deterministic_mode")]
+    pub evaluation: String,
     /// Mean reward per decision over the last 10 % of the transfer curve.
     pub final_train_reward: f64,
-    /// Figures of the deterministic evaluation: p, m, speed_bl, nn_bl,
+    /// Figures of the evaluation: p, m, speed_bl, nn_bl,
     /// boundary_per_fish_hour, neighbour_per_fish_hour, reward_per_decision,
     /// and the state shares swarm, milling, polarised, transitional.
     pub figures: BTreeMap<String, Figure>,
 }
 
+fn legacy_profile() -> String {
+    "legacy".into()
+}
+
+fn deterministic_mode() -> String {
+    "deterministic".into()
+}
+
 impl Card {
     pub fn env_seed(&self, eval_seed: u64) -> u64 {
         self.env_seed_base + 1000 * eval_seed + self.train_seed
+    }
+
+    /// Whether its figures come from the policy's mean action.
+    pub fn deterministic(&self) -> bool {
+        self.evaluation == "deterministic"
     }
 }
 
@@ -97,6 +158,8 @@ pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Re
             mean: s.mean,
             sd: s.sd,
             floor,
+            cap: None,
+            first: None,
         };
         let mut figures = BTreeMap::new();
         figures.insert("p".into(), fig(stat(&|x| x.summary.p_mean as f64), 0.1));
@@ -127,7 +190,18 @@ pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Re
             ("polarised", SchoolState::Polarised),
             ("transitional", SchoolState::Transitional),
         ] {
-            figures.insert(k.into(), fig(stat(&share(st)), 0.15));
+            figures.insert(
+                k.into(),
+                Figure {
+                    cap: Some(SHARE_CAP),
+                    ..fig(stat(&share(st)), 0.15)
+                },
+            );
+        }
+        for (k, v) in figure_values(&ms[0].summary) {
+            if let Some(f) = figures.get_mut(k) {
+                f.first = Some(v);
+            }
         }
         // Mean of the last tenth (rounded down, at least one) of the transfer curve.
         let final_train_reward =
@@ -152,6 +226,13 @@ pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Re
             warmup: profile.warmup,
             seconds: profile.seconds,
             commit: super::figures::git_commit(),
+            reward_profile: dirs.reward_profile.clone(),
+            evaluation: if profile.deterministic {
+                "deterministic"
+            } else {
+                "sampled"
+            }
+            .into(),
             final_train_reward,
             figures,
         };
@@ -215,8 +296,19 @@ fn card_markdown(c: &Card) -> String {
     );
     let _ = writeln!(
         md,
-        "## Evaluation in `{}`\n\nDeterministic policy, {:.0} s warm-up then {:.0} s recorded, evaluation seeds {:?} (environment seed {} + 1000·seed + {}); mean ± standard deviation over the seeds.\n",
-        c.scene, c.warmup, c.seconds, c.eval_seeds, c.env_seed_base, c.train_seed
+        "## Evaluation in `{}`\n\n{}, reward profile `{}`, {:.0} s warm-up then {:.0} s recorded, evaluation seeds {:?} (environment seed {} + 1000·seed + {}); mean ± standard deviation over the seeds.\n",
+        c.scene,
+        if c.deterministic() {
+            "Deterministic policy (the mean action)"
+        } else {
+            "Sampled actions (as Unity ML-Agents 1.x inference)"
+        },
+        c.reward_profile,
+        c.warmup,
+        c.seconds,
+        c.eval_seeds,
+        c.env_seed_base,
+        c.train_seed
     );
     let _ = writeln!(md, "| figure | value |\n|---|---|");
     for (name, k) in [
