@@ -1,12 +1,9 @@
-//! The `deepfoids` command line's commands. Everything simulated or learned
-//! lives in the library crates (`deepfoids-env`, `deepfoids-sensors`); this
-//! crate parses arguments, drives the loops, and writes files and plots.
+//! The `deepfoids` command line: argument parsing ([`cli`], [`args`]),
+//! dispatch, and what each command prints ([`commands`]). Everything simulated,
+//! learned, evaluated or reproduced lives in the library crates
+//! (`deepfoids-env`, `-learn`, `-ppo`, `-sac`, `-onnx`, `-render`, `-replay`
+//! and `deepfoids-experiments`).
 
-pub mod bounds;
+pub mod args;
 pub mod cli;
-pub mod clip;
 pub mod commands;
-pub mod io;
-pub mod plot;
-pub mod pretrained;
-pub mod report;

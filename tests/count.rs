@@ -3,29 +3,14 @@
 //! fall), then counted through the whole pipeline; sparse against dense cage
 //! statistics (Fig. 4.12).
 
+mod support;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn deepfoids(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_deepfoids"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use std::process::Command;
+use support::{deepfoids, temp_path, text};
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deepfoids-count-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+    temp_path("count", name)
 }
 
 fn render(scene: &str, out: &Path, extra: &[&str]) {

@@ -1,16 +1,17 @@
 //! The policies that ship in `policies/` (issue 14): each loads, its Burn
-//! weights act as its ONNX twin does (≤ 1e-4), and a deterministic evaluation
-//! in its default scene still gives its model card's figures — so a change to
-//! the environment that breaks the shipped policies fails here.
+//! weights act as its ONNX twin does (≤ 1e-4), and an evaluation in its
+//! default scene, in the card's reward profile and evaluation mode, still gives
+//! its model card's figures — so a change to the environment that breaks the
+//! shipped policies fails here.
 
-use deepfoids::commands::reproduce::ship::{Card, SPECIES};
-use deepfoids::commands::{load_scene, load_trained};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy};
+use deepfoids_experiments::reproduce::ship::{Card, SPECIES, figure_values};
+use deepfoids_experiments::{load_scene, load_trained};
 use std::path::PathBuf;
 
 fn shipped(species: &str) -> (PathBuf, Card) {
-    let dir = deepfoids::pretrained::resolve(&format!("pretrained:{species}"))
+    let dir = deepfoids_experiments::pretrained::resolve(&format!("pretrained:{species}"))
         .unwrap_or_else(|e| panic!("{e}"));
     let card: Card = toml::from_str(
         &std::fs::read_to_string(dir.join("card.toml"))
@@ -27,9 +28,9 @@ fn configs() -> ConfigDirs {
 
 #[test]
 fn every_species_ships_a_policy_with_a_card() {
-    let root = deepfoids::pretrained::root();
+    let root = deepfoids_experiments::pretrained::root();
     assert_eq!(
-        deepfoids::pretrained::available(&root),
+        deepfoids_experiments::pretrained::available(&root),
         vec!["coho", "seabream", "yellowtail"],
         "in {}",
         root.display()
@@ -95,10 +96,18 @@ fn shipped_policies_match_their_onnx_twins() {
 fn shipped_policies_still_give_their_cards_figures() {
     for sp in SPECIES {
         let (dir, card) = shipped(sp);
-        let scene = load_scene(&configs(), &card.scene, Phase::Transfer).unwrap();
-        let mut env = Env::new(scene, card.env_seed(card.eval_seeds[0]));
-        let mut policy = load_trained(&dir, None, &env, true, card.train_seed).unwrap();
-        let eval = deepfoids::report::evaluate(
+        let dirs = configs().with_reward_profile(&card.reward_profile);
+        let scene = load_scene(&dirs, &card.scene, Phase::Transfer).unwrap();
+        let env_seed = card.env_seed(card.eval_seeds[0]);
+        let mut env = Env::new(scene, env_seed);
+        // A card records its evaluation mode; sampling is seeded by the env's seed.
+        let seed = if card.deterministic() {
+            card.train_seed
+        } else {
+            env_seed
+        };
+        let mut policy = load_trained(&dir, None, &env, card.deterministic(), seed).unwrap();
+        let eval = deepfoids_experiments::evaluate::evaluate(
             &mut env,
             &mut policy,
             card.warmup,
@@ -107,32 +116,8 @@ fn shipped_policies_still_give_their_cards_figures() {
         )
         .unwrap();
         let s = eval.recorder.summary(eval.seconds);
-        let share = |st: deepfoids_env::metrics::SchoolState| {
-            s.state_share
-                .iter()
-                .find(|q| q.0 == st)
-                .map_or(0.0, |q| q.1 as f64)
-        };
-        use deepfoids_env::metrics::SchoolState::*;
-        let measured = [
-            ("p", s.p_mean as f64),
-            ("m", s.m_mean as f64),
-            ("speed_bl", s.mean_speed_bl as f64),
-            ("nn_bl", s.nn_mean_bl as f64),
-            (
-                "boundary_per_fish_hour",
-                s.boundary_collisions_per_fish_hour,
-            ),
-            (
-                "neighbour_per_fish_hour",
-                s.neighbour_collisions_per_fish_hour,
-            ),
-            ("reward_per_decision", s.reward_per_decision),
-            ("swarm", share(Swarm)),
-            ("milling", share(Milling)),
-            ("polarised", share(Polarised)),
-            ("transitional", share(Transitional)),
-        ];
+        let measured = figure_values(&s);
+        eprintln!("{sp}: measured {measured:?}");
         for (k, x) in measured {
             let f = &card.figures[k];
             assert!(

@@ -1,24 +1,11 @@
 //! Integration tests of `deepfoids render`: the dataset's files and formats,
 //! and continuing an interrupted render.
 
+mod support;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn deepfoids(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_deepfoids"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use std::process::Output;
+use support::{deepfoids, text};
 
 fn render(out: &Path, extra: &[&str]) -> Output {
     let mut args = vec![

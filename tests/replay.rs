@@ -1,30 +1,16 @@
 //! `deepfoids replay` and `eval --replay` as a user runs them (issue 16).
 //! What the page looks like in a browser is checked by `.ci/check_replay.py`.
 
+mod support;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use support::{deepfoids, temp_path, text};
 
-fn deepfoids(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_deepfoids"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the binary runs")
-}
-
+/// A fresh, empty temporary folder.
 fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deepfoids-replay-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
+    let d = temp_path("replay", name);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
 }
 
 fn s(p: &Path) -> &str {

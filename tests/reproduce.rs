@@ -2,12 +2,15 @@
 //! measurements, verdict, report), resumption, shipping policies with model
 //! cards, and `pretrained:<species>` in the commands that take a policy.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
 
+use std::path::{Path, PathBuf};
+use std::process::Output;
+use support::{command, temp_path, text};
+
+/// The binary, with the shipped policies looked for in `policies` if given.
 fn deepfoids(args: &[&str], policies: Option<&Path>) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_deepfoids"));
-    c.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    let mut c = command(args);
     if let Some(p) = policies {
         c.env("DEEPFOIDS_POLICIES", p);
     }
@@ -15,17 +18,7 @@ fn deepfoids(args: &[&str], policies: Option<&Path>) -> Output {
 }
 
 fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deepfoids-repro-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
+    temp_path("repro", name)
 }
 
 /// `seabream-cage` on the quick profile × 0.02 (4,000-step pretraining, two

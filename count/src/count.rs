@@ -7,7 +7,7 @@ use crate::error::{CountError, Result};
 use crate::frames::Frames;
 use crate::preprocess::{InputCamera, PerspectiveView, median_blur};
 use crate::windows::{crop, thesis_count, windows};
-use deepfoids_env::io::write_atomic;
+use deepfoids_io::write_atomic;
 use image::RgbImage;
 use rayon::prelude::*;
 use serde::Serialize;

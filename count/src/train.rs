@@ -32,7 +32,7 @@ use crate::preprocess::{InputCamera, PerspectiveView, median_blur};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::prelude::*;
 use burn::tensor::activation::log_sigmoid;
-use deepfoids_env::io::write_atomic;
+use deepfoids_io::write_atomic;
 use image::RgbImage;
 use serde::Serialize;
 use serde_json::Value;

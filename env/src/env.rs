@@ -235,6 +235,7 @@ impl Model {
             obstacles: &self.obstacles,
             site: &self.scene.site,
             config: &self.scene.physics,
+            rewards: &self.scene.rewards,
             seed: self.seed,
         }
     }
@@ -250,6 +251,7 @@ impl Model {
             grid,
             cage_height: self.cage.height,
             neighbour_cap: self.scene.rewards.neighbour_cap as usize,
+            extensions: self.scene.rewards.extensions,
         }
     }
 }
@@ -503,6 +505,12 @@ impl Env {
         params.check().map_err(bad)?;
         self.model.traits.params[i] = params;
         Ok(())
+    }
+
+    /// How actions act from the next decision on (SPEC §4), overriding the
+    /// reward profile's `timing.actions` (a rule-based policy fixes its own).
+    pub fn set_action_timing(&mut self, timing: crate::config::ActionTiming) {
+        self.model.scene.rewards.timing.actions = timing;
     }
 
     /// Advance one tick. `actions[b]` holds `n_agents × 3` floats for every

@@ -413,6 +413,10 @@ pub(crate) fn rewards(r: &RewardWeights, path: &Path) -> Result<(), ConfigError>
         ("w_agg", r.w_agg),
         ("w_tar", r.w_tar),
         ("catch_bonus", r.catch_bonus),
+        (
+            "extensions.personal_space_penalty",
+            r.extensions.personal_space_penalty,
+        ),
     ];
     for (field, v) in fields {
         check(path, field, v, WEIGHT, "")?;
@@ -425,7 +429,22 @@ pub(crate) fn rewards(r: &RewardWeights, path: &Path) -> Result<(), ConfigError>
         cap as u64,
         "neighbours (0: every neighbour)",
     )?;
-    Ok(())
+    check(
+        path,
+        "timing.turn_step_deg",
+        r.timing.turn_step_deg,
+        [0.0, 90.0],
+        "°",
+    )?;
+    check(path, "contacts.kick", r.contacts.kick, SPEED, "m/s")?;
+    check(path, "contacts.push", r.contacts.push, SPEED, "m/s")?;
+    check(
+        path,
+        "extensions.personal_space_bl",
+        r.extensions.personal_space_bl,
+        BL,
+        "BL",
+    )
 }
 
 /// Kinds of baseline parameter, for their bounds.

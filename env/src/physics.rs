@@ -29,12 +29,14 @@
 
 use crate::cage::Cage;
 use crate::collide::{Obb, overlap};
-use crate::config::{PhysicsConfig, SiteConfig};
+use crate::config::{ActionTiming, PhysicsConfig, RewardTiming, RewardWeights, SiteConfig};
 use crate::env::PAR_MIN_LEN;
 use crate::forces::{light_at_depth, light_response, temperature_at_depth, temperature_response};
-use crate::kinematics::{basis, decide, integrate_velocity};
+use crate::kinematics::{angle_deg, basis, decide, integrate_velocity, pitch_deg, turn};
+use crate::reward;
 use crate::rng::{Purpose, Stream};
-use crate::state::{Motor, State};
+use crate::sensing::boundary_closeness;
+use crate::state::{MAX_HITS, Motor, State};
 use crate::traits::{BehaviourInfo, Traits};
 use crate::world::{Chase, World};
 use deepfoids_sensors::{Boundary, Obstacle, SpatialGrid};
@@ -49,6 +51,8 @@ pub(crate) struct Physics<'a> {
     pub obstacles: &'a [Obstacle],
     pub site: &'a SiteConfig,
     pub config: &'a PhysicsConfig,
+    /// The reward profile's timing, contacts and episode rule (SPEC §4, §6.1, §6.2).
+    pub rewards: &'a RewardWeights,
     pub seed: u64,
 }
 
@@ -113,6 +117,11 @@ impl Physics<'_> {
             self.config.max_turn_deg.to_radians(),
             self.config.roll_clamp_deg.to_radians(),
         );
+        let stepwise = self.rewards.timing.actions == ActionTiming::PerStep;
+        let (turn_step, dt) = (
+            self.rewards.timing.turn_step_deg.to_radians(),
+            self.config.dt_sim,
+        );
         let k = info.steps_per_decision;
         let i0 = state.surface_light;
         let (site, params) = (self.site, &self.traits.params[r.clone()]);
@@ -135,37 +144,48 @@ impl Physics<'_> {
             .enumerate()
             .for_each(|(a, (act, roll, speed, motor, since))| {
                 let p = params[a];
-                let d = decide(
-                    [act[0], act[1], act[2]],
-                    heading[a],
-                    *roll,
-                    *speed,
-                    bl[a],
-                    info.max_delta_speed_bl,
-                    p.speed_bl,
-                    max_turn,
-                    roll_max,
-                    k,
-                );
                 let (dv_light, dv_temp) =
                     vertical_response(info, light_pref[a], p.light_steep, site, i0, -position[a].y);
                 // A range set anew (a model switching to its night or hovering
-                // speeds) applies from the decision on: the speed the action
-                // changed is clamped into it, and the decision leads from there
-                // to the action's target.
-                let clamped = speed.clamp(p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]);
-                let dv_step = if clamped == *speed {
-                    d.dv_step
+                // speeds) applies from the decision on: the speed is clamped into it.
+                let range = [p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]];
+                let clamped = speed.clamp(range[0], range[1]);
+                let [a0, a1, a2] = [act[0], act[1], act[2]].map(|x| x.clamp(-1.0, 1.0));
+                let dv_step = if stepwise {
+                    Vec3::ZERO
                 } else {
-                    *speed = clamped;
-                    (d.target - clamped * heading[a]) / k as f32
+                    let d = decide(
+                        [a0, a1, a2],
+                        heading[a],
+                        *roll,
+                        *speed,
+                        bl[a],
+                        info.max_delta_speed_bl,
+                        p.speed_bl,
+                        max_turn,
+                        roll_max,
+                        k,
+                    );
+                    *roll = d.roll;
+                    // The decision leads from the clamped speed to the action's target.
+                    if clamped == *speed {
+                        d.dv_step
+                    } else {
+                        (d.target - clamped * heading[a]) / k as f32
+                    }
                 };
+                *speed = clamped;
                 *motor = Motor {
                     dv_step,
                     vertical_step: (dv_light + dv_temp) * bl[a] / k as f32,
-                    speed_range: [p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]],
+                    speed_range: range,
+                    stepwise,
+                    // SPEC §4: Δv_max is an acceleration (BL/s per second).
+                    accel_step: a0 * info.max_delta_speed_bl * bl[a] * dt,
+                    yaw_step: a2 * turn_step,
+                    pitch_step: a1 * turn_step,
+                    kick: motor.kick,
                 };
-                *roll = d.roll;
                 since.start_decision(heading[a]);
             });
     }
@@ -187,15 +207,26 @@ impl Physics<'_> {
     /// One physics step (see the module docs).
     pub fn step(&self, state: &mut State, contact_grid: &mut SpatialGrid, correction: &mut [Vec3]) {
         let dt = self.config.dt_sim;
-        // 1. Velocity (Eq. 4.4), position, heading; respawn on crossing.
+        let rw = self.rewards;
+        let (per_step_rewards, ends_episode) = (
+            rw.timing.rewards == RewardTiming::PerStep,
+            rw.extensions.boundary_ends_episode,
+        );
+        // 1. Velocity (Eq. 4.4), position, heading; respawn or bounce on crossing;
+        //    the terms that accrue at every step (SPEC §6.1).
         {
             let w = &mut state.world;
             let (traits, cage, obstacles, seed) =
                 (self.traits, self.cage, self.obstacles, self.seed);
             let (info, behaviour, bl) = (self.info, &w.behaviour, &w.bl);
-            let (margin_bl, max_pitch) = (
+            let (margin_bl, max_pitch, roll_max) = (
                 self.config.spawn_margin_bl,
                 self.config.spawn_pitch_deg.to_radians(),
+                self.config.roll_clamp_deg.to_radians(),
+            );
+            let (pitch_threshold, speed_threshold) = (
+                self.config.pitch_threshold_deg,
+                self.config.speed_threshold_bl,
             );
             (
                 w.position.par_iter_mut(),
@@ -210,19 +241,39 @@ impl Physics<'_> {
                 .with_min_len(PAR_MIN_LEN)
                 .enumerate()
                 .for_each(|(i, (p, f, roll, s, motor, since, axes))| {
+                    let (f0, s0) = (*f, *s);
+                    // SPEC §4: per-step actions turn by θ_step and change the
+                    // speed by Δv_max·BL·dt_sim at this step; per-decision ones
+                    // add their decision's Δv_f / k.
+                    let (dv, new_roll) = if motor.stepwise {
+                        let (tf, troll) =
+                            turn(f0, *roll, motor.yaw_step, motor.pitch_step, roll_max);
+                        let ts = (s0 + motor.accel_step)
+                            .clamp(motor.speed_range[0], motor.speed_range[1]);
+                        (ts * tf - s0 * f0, troll)
+                    } else {
+                        (motor.dv_step, *roll)
+                    };
                     let (nf, ns) = integrate_velocity(
-                        *f,
-                        *s,
-                        motor.dv_step,
+                        f0,
+                        s0,
+                        dv + motor.kick,
                         motor.vertical_step,
                         motor.speed_range,
                     );
+                    motor.kick = Vec3::ZERO;
                     let obb = Obb {
                         center: *p + nf * ns * dt,
-                        axes: basis(nf, *roll),
+                        axes: basis(nf, new_roll),
                         half: traits.half[i],
                     };
-                    if crosses(&obb, &cage.boundaries, obstacles) {
+                    if !crosses(&obb, &cage.boundaries, obstacles) {
+                        *p = obb.center;
+                        *f = nf;
+                        *s = ns;
+                        *roll = new_roll;
+                        *axes = obb.axes;
+                    } else if ends_episode {
                         let mut st =
                             Stream::new(seed, Purpose::Spawn, i as u64, since.spawns as u64);
                         since.spawns += 1;
@@ -240,28 +291,57 @@ impl Physics<'_> {
                         *s = info[behaviour[i] as usize].v0_bl * bl[i];
                         motor.dv_step = Vec3::ZERO;
                         motor.vertical_step = 0.0;
+                        motor.stepwise = false;
                         since.crossed = true;
+                        since.n_touching = 0;
                         *axes = basis(sf, 0.0);
+                        return;
                     } else {
-                        *p = obb.center;
-                        *f = nf;
+                        let (bp, bf, br) = bounce(*p, f0, *roll, &obb, cage, obstacles);
+                        *p = bp;
+                        *f = bf;
                         *s = ns;
-                        *axes = obb.axes;
+                        *roll = br;
+                        *axes = basis(bf, br);
+                        since.crossed = true;
+                    }
+                    if per_step_rewards {
+                        let b = bl[i];
+                        let acc = &mut since.accrued;
+                        acc.movement += reward::movement(
+                            rw,
+                            pitch_deg(*f),
+                            *s / b,
+                            pitch_threshold,
+                            speed_threshold,
+                        );
+                        acc.boundary_distance += reward::boundary_distance(
+                            rw,
+                            boundary_closeness(*p, traits.sense[i], &cage.boundaries, obstacles),
+                        );
+                        acc.energy +=
+                            reward::energy(rw, angle_deg(f0, *f), (*s * *f - s0 * f0).length() / b);
                     }
                 });
         }
-        // 2. Contacts between fish: count partners, note catches, and push apart.
+        // 2. Contacts between fish: count partners, note catches, push apart,
+        //    and kick the pairs whose contact starts (SPEC §6.1).
         contact_grid.rebuild(&state.world.position, &self.traits.bound);
         {
             let w = &state.world;
             let (grid, axes, repulsion) = (&*contact_grid, &state.axes, self.config.repulsion);
             let (half, bound, max_bound) =
                 (&self.traits.half, &self.traits.bound, self.traits.max_bound);
-            (state.since.par_iter_mut(), correction.par_iter_mut())
+            let contacts = rw.contacts;
+            (
+                state.since.par_iter_mut(),
+                state.motor.par_iter_mut(),
+                correction.par_iter_mut(),
+            )
                 .into_par_iter()
                 .with_min_len(PAR_MIN_LEN)
                 .enumerate()
-                .for_each(|(i, (since, corr))| {
+                .for_each(|(i, (since, motor, corr))| {
                     let me = Obb {
                         center: w.position[i],
                         axes: axes[i],
@@ -273,6 +353,9 @@ impl Physics<'_> {
                         _ => None,
                     };
                     let mut push = Vec3::ZERO;
+                    let mut kick = Vec3::ZERO;
+                    let mut now = [0u32; MAX_HITS];
+                    let mut n_now = 0usize;
                     grid.for_each_candidate(me.center, r + max_bound, |j, q| {
                         let reach = r + q.w;
                         if me.center.distance_squared(q.truncate()) >= reach * reach || j == i {
@@ -290,8 +373,21 @@ impl Physics<'_> {
                             }
                             // Each fish of the pair moves half the corrected depth away.
                             push -= axis * (0.5 * repulsion * depth);
+                            if since.was_touching(j as u32) {
+                                kick -= axis * contacts.push;
+                            } else {
+                                since.accrued.contact_starts += 1;
+                                kick -= axis * contacts.kick;
+                            }
+                            if n_now < MAX_HITS {
+                                now[n_now] = j as u32;
+                                n_now += 1;
+                            }
                         }
                     });
+                    since.touching = now;
+                    since.n_touching = n_now as u8;
+                    motor.kick += kick;
                     *corr = push;
                 });
         }
@@ -319,6 +415,61 @@ impl Physics<'_> {
         }
         state.physics_steps += 1;
         state.world.time = state.physics_steps as f64 * dt as f64;
+    }
+}
+
+/// Bounce off the net (SPEC §6.2, `boundary_ends_episode = false`). A fish at
+/// `p` (heading `f_old`, roll `roll_old`: a valid pose) whose next collider
+/// `moved` would cross a boundary stays at `p` with the new heading reflected
+/// off every plane it would cross (`f − 2(f·n)n` where `f` points outwards),
+/// its collider moved back inside along the normals by the depth it still
+/// crosses, level (roll 0). If no plane was crossed (an obstacle) or that pose still crosses (a
+/// corner), it turns back on itself in place: heading `−f_old`, roll
+/// `−roll_old` — the same box turned 180° about its centre, so still valid.
+/// Returns the position, heading and roll.
+fn bounce(
+    p: Vec3,
+    f_old: Vec3,
+    roll_old: f32,
+    moved: &Obb,
+    cage: &Cage,
+    obstacles: &[Obstacle],
+) -> (Vec3, Vec3, f32) {
+    let turn_back = (p, -f_old, -roll_old);
+    let mut reflected = moved.axes.z_axis;
+    let mut any = false;
+    for b in &cage.boundaries {
+        if moved.clearance(&b.plane) < 0.0 {
+            any = true;
+            let along = reflected.dot(b.plane.normal);
+            if along < 0.0 {
+                reflected -= 2.0 * along * b.plane.normal;
+            }
+        }
+    }
+    let reflected = reflected.normalize_or_zero();
+    if !any || reflected == Vec3::ZERO {
+        return turn_back;
+    }
+    // Level after the bounce: roll 0 is always within the clamp.
+    let roll = 0.0;
+    let mut obb = Obb {
+        center: p,
+        axes: basis(reflected, roll),
+        half: moved.half,
+    };
+    for _ in 0..2 {
+        for b in &cage.boundaries {
+            let c = obb.clearance(&b.plane);
+            if c < 0.0 {
+                obb.center += b.plane.normal * (1e-4 - c);
+            }
+        }
+    }
+    if crosses(&obb, &cage.boundaries, obstacles) {
+        turn_back
+    } else {
+        (obb.center, reflected, roll)
     }
 }
 

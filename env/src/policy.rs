@@ -3,6 +3,7 @@
 //! implement the same trait, so every evaluation drives the world the same way
 //! ([`act_and_step`]).
 
+use crate::config::ActionTiming;
 use crate::env::{Env, EnvError, StepOutput};
 use crate::rng::{Purpose, Stream};
 use crate::traits::FishParams;
@@ -28,6 +29,14 @@ pub trait Policy {
     fn fish_params(&self, _env: &Env, _fish: usize) -> Option<FishParams> {
         None
     }
+
+    /// How this policy's actions are meant to act (SPEC §4), if its own model
+    /// fixes it: the rule-based baselines steer per decision (their papers'
+    /// reading, and what their published parameters were tuned for).
+    /// [`act_and_step`] sets it on the env. Default: `None` (the reward profile's).
+    fn action_timing(&self) -> Option<ActionTiming> {
+        None
+    }
 }
 
 /// Errors of [`act_and_step`].
@@ -47,6 +56,9 @@ pub fn act_and_step<'e>(
     env: &'e mut Env,
     actions: &mut [Vec<f32>],
 ) -> Result<&'e StepOutput, DriveError> {
+    if let Some(t) = policy.action_timing() {
+        env.set_action_timing(t);
+    }
     policy
         .act(env, actions)
         .map_err(|source| DriveError::Policy {

@@ -2,13 +2,25 @@
 //!
 //! Per decision, looking back on the `k` physics steps since the previous one:
 //! `r = r_BC + r_NC + r_BD + r_ND + r_E + r_M + r_C` ([`Terms::total`]).
-//! A fish whose collider crossed a boundary earns `r_BC + r_NC` only (its end
-//! state lies outside the cage; the episode is *terminated*); every other fish
-//! earns all terms but `r_BC` from its state at the decision. Reaching
-//! `max_episode_decisions` *truncates* the episode. Each term is a function of
-//! its own below, with its definition.
+//! Each term is a function of its own below, with its definition.
+//!
+//! When each term accrues is the profile's `timing.rewards` (SPEC §6.1):
+//! * `per_step` (default, the Unity agent's): `r_M`, `r_BD` and `r_E` are
+//!   summed over the decision's physics steps (the physics stage accrues them,
+//!   [`crate::state::Accrued`]); `r_NC` is `−w_NC` per contact that *started*
+//!   (a partner not overlapping at the previous step), so a lasting contact
+//!   pays once; `r_ND` and `r_C` come once, from the state at the decision.
+//! * `per_decision` (the earlier reading): every term once, from the state at
+//!   the decision; `r_NC` per distinct partner touched during the decision.
+//!
+//! A fish whose collider crossed a boundary earns `r_BC` (and, per step, what
+//! accrued before the crossing, and its contacts); if the crossing ends the
+//! episode (the default) it earns nothing else (its end state lies outside the
+//! cage; *terminated*). With `boundary_ends_episode = false` it bounced back
+//! inside and earns every term besides. Reaching `max_episode_decisions`
+//! *truncates* the episode.
 
-use crate::config::RewardWeights;
+use crate::config::{RewardTiming, RewardWeights};
 use crate::kinematics::{angle_deg, pitch_deg};
 use crate::sensing::Surroundings;
 use crate::state::{Motor, Since};
@@ -84,9 +96,10 @@ pub fn boundary_distance(w: &RewardWeights, closeness: f32) -> f32 {
 }
 
 /// `r_ND = w_ND · Σ_j (90 − Δθ_j)/90` over neighbours within `d_sense`
-/// (`alignment` is the sum; `Δθ_j` in degrees).
-pub fn neighbour_distance(w: &RewardWeights, alignment: f32) -> f32 {
-    w.w_nd * alignment
+/// (`alignment` is the sum; `Δθ_j` in degrees), less SPEC §6.2's personal-space
+/// penalty per neighbour inside it (`crowding`).
+pub fn neighbour_distance(w: &RewardWeights, alignment: f32, crowding: u32) -> f32 {
+    w.w_nd * alignment - w.extensions.personal_space_penalty * crowding as f32
 }
 
 /// `r_E = −w_r · Δθ − w_s · |Δv_a|`: `Δθ` the body's rotation over the
@@ -157,15 +170,29 @@ impl Rewards<'_> {
     pub fn evaluate(&self, i: usize, seen: &Surroundings) -> Outcome {
         let (w, rw, since) = (self.world, self.weights, &self.since[i]);
         let bl = w.bl[i];
-        let terminated = since.crossed;
+        let per_step = rw.timing.rewards == RewardTiming::PerStep;
+        let terminated = since.crossed && rw.extensions.boundary_ends_episode;
+        let contacts = if per_step {
+            since.accrued.contact_starts
+        } else {
+            since.n_hits as u32
+        };
         let mut terms = Terms {
-            boundary_collision: boundary_collision(rw, terminated),
-            neighbour_collision: neighbour_collision(rw, since.n_hits as u32),
+            boundary_collision: boundary_collision(rw, since.crossed),
+            neighbour_collision: neighbour_collision(rw, contacts),
             ..Terms::default()
         };
+        if per_step {
+            terms.boundary_distance = since.accrued.boundary_distance;
+            terms.energy = since.accrued.energy;
+            terms.movement = since.accrued.movement;
+        }
         if !terminated {
+            terms.neighbour_distance = neighbour_distance(rw, seen.alignment_sum, seen.crowding);
+            terms.chase = chase(rw, w, i, since.caught);
+        }
+        if !terminated && !per_step {
             terms.boundary_distance = boundary_distance(rw, seen.boundary_sum);
-            terms.neighbour_distance = neighbour_distance(rw, seen.alignment_sum);
             let m = &self.motor[i];
             let dv_a = m.dv_step + Vec3::new(0.0, m.vertical_step, 0.0);
             terms.energy = energy(
@@ -180,7 +207,6 @@ impl Rewards<'_> {
                 self.pitch_threshold_deg,
                 self.speed_threshold_bl,
             );
-            terms.chase = chase(rw, w, i, since.caught);
         }
         Outcome {
             terms,
@@ -210,6 +236,9 @@ mod tests {
             w_agg: 8.0,
             w_tar: 1.0,
             catch_bonus: 100.0,
+            timing: Default::default(),
+            contacts: Default::default(),
+            extensions: Default::default(),
         }
     }
 
@@ -224,7 +253,7 @@ mod tests {
             boundary_collision: boundary_collision(&w, false),
             neighbour_collision: neighbour_collision(&w, 3),
             boundary_distance: boundary_distance(&w, 0.25),
-            neighbour_distance: neighbour_distance(&w, 1.5),
+            neighbour_distance: neighbour_distance(&w, 1.5, 0),
             energy: energy(&w, 10.0, -0.2),
             movement: movement(&w, 5.0, 0.5, 53.0, 0.3),
             chase: 0.0,

@@ -85,6 +85,8 @@ pub struct Scene {
     pub behaviours: Vec<BehaviourSpec>,
     pub physics: PhysicsConfig,
     pub phase: Phase,
+    /// The reward profile the weights come from (`rewards/<profile>/`).
+    pub reward_profile: String,
     pub rewards: RewardWeights,
 }
 
@@ -202,6 +204,7 @@ impl Scene {
             behaviours,
             physics: file.physics,
             phase,
+            reward_profile: dirs.reward_profile.clone(),
             rewards,
         };
         scene.validate(&path)?;

@@ -16,6 +16,7 @@
 //! in the fish's local frame, `u = (0, 0, 1) − R⁻¹·f_front` (zero without a
 //! neighbour in front).
 
+use crate::config::{Extensions, NeighbourForm};
 use crate::kinematics::{basis, fast_acos_deg};
 use crate::traits::Traits;
 use crate::world::{Chase, World};
@@ -29,8 +30,12 @@ use glam::Vec3;
 pub(crate) struct Surroundings {
     /// `Σ (d_sense − d_i)/d_sense` over boundaries and obstacles within range.
     pub boundary_sum: f32,
-    /// `Σ (90 − Δθ_j)/90` over neighbours within range.
+    /// `Σ (90 − Δθ_j)/90` over neighbours within range (with SPEC §6.2's
+    /// extensions: outside the personal space, conspecific, size-weighted, or
+    /// the mean instead of the sum, as the profile says).
     pub alignment_sum: f32,
+    /// Neighbours inside the personal space (SPEC §6.2; 0 when it is off).
+    pub crowding: u32,
     pub nearest_front: Option<u32>,
     pub nearest_subordinate: Option<u32>,
 }
@@ -47,6 +52,30 @@ pub(crate) struct Sensing<'a> {
     pub cage_height: f32,
     /// `r_ND` over at most this many nearest neighbours (0: all).
     pub neighbour_cap: usize,
+    /// How `r_ND` counts neighbours (SPEC §6.2).
+    pub extensions: Extensions,
+}
+
+/// `Σ_i (d_sense − d_i)/d_sense` over the boundaries and obstacles within
+/// `range` of `p` (SPEC §6, `r_BD`'s sum; a point beyond a plane counts as at it).
+pub(crate) fn boundary_closeness(
+    p: Vec3,
+    range: f32,
+    boundaries: &[Boundary],
+    obstacles: &[Obstacle],
+) -> f32 {
+    let near = |d: f32| {
+        if d < range {
+            (range - d.max(0.0)) / range
+        } else {
+            0.0
+        }
+    };
+    boundaries
+        .iter()
+        .map(|b| near(b.plane.distance(p)))
+        .chain(obstacles.iter().map(|o| near(o.distance(p))))
+        .sum()
 }
 
 /// The `K` nearest neighbours' alignment terms seen so far, by distance.
@@ -101,11 +130,13 @@ impl Sensing<'_> {
         let (p, f) = (w.position[i], w.heading[i]);
         let rot = basis(f, w.roll[i]);
         let to_local = rot.transpose();
-        let mut seen = Surroundings::default();
+        let mut seen = Surroundings {
+            boundary_sum: boundary_closeness(p, range, self.boundaries, self.obstacles),
+            ..Surroundings::default()
+        };
         for bd in self.boundaries {
             let d = bd.plane.distance(p);
             if d < range {
-                seen.boundary_sum += (range - d.max(0.0)) / range;
                 frame.add_plane(
                     self.sensor,
                     to_local * bd.plane.normal,
@@ -117,7 +148,6 @@ impl Sensing<'_> {
         for o in self.obstacles {
             let d = o.distance(p);
             if d < range {
-                seen.boundary_sum += (range - d.max(0.0)) / range;
                 frame.add_obstacle(self.sensor, p, rot, o);
             }
         }
@@ -127,6 +157,9 @@ impl Sensing<'_> {
         let range2 = range * range;
         let mut spheres = SphereBatch::new();
         let cap = self.neighbour_cap;
+        let ext = &self.extensions;
+        let personal2 = (ext.personal_space_bl * w.bl[i]).powi(2);
+        let mut counted = 0u32;
         let mut nearest = Nearest::<MAX_NEIGHBOUR_CAP>::new();
         self.grid.for_each_candidate(p, range, |j, q| {
             let rel = q.truncate() - p;
@@ -135,11 +168,19 @@ impl Sensing<'_> {
                 return;
             }
             let d = d2.sqrt();
-            let align = (90.0 - fast_acos_deg(f.dot(w.heading[j]))) / 90.0;
-            if cap == 0 {
-                seen.alignment_sum += align;
-            } else {
-                nearest.offer(cap, d, align);
+            if d2 < personal2 {
+                seen.crowding += 1;
+            } else if !ext.conspecific_only || w.species[j] == w.species[i] {
+                let mut align = (90.0 - fast_acos_deg(f.dot(w.heading[j]))) / 90.0;
+                if ext.size_weighted {
+                    align *= w.bl[i].min(w.bl[j]) / w.bl[i].max(w.bl[j]);
+                }
+                if cap == 0 {
+                    seen.alignment_sum += align;
+                    counted += 1;
+                } else {
+                    nearest.offer(cap, d, align);
+                }
             }
             if rel.dot(f) > 0.0 && d < front_d {
                 front_d = d;
@@ -167,6 +208,10 @@ impl Sensing<'_> {
         frame.add_spheres(self.sensor, &spheres);
         if cap > 0 {
             seen.alignment_sum = nearest.sum();
+            counted = nearest.len as u32;
+        }
+        if ext.neighbour_form == NeighbourForm::Mean && counted > 0 {
+            seen.alignment_sum /= counted as f32;
         }
         seen
     }

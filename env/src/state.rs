@@ -22,12 +22,37 @@ pub(crate) struct Motor {
     /// The speed clamp of this decision `[min, max]` (m/s), from the fish's
     /// [`crate::FishParams`] at the decision.
     pub speed_range: [f32; 2],
+    /// With per-step actions (SPEC §4): the action acts at every physics step
+    /// (`dv_step` is then unused).
+    pub stepwise: bool,
+    /// Per-step actions: speed change per physics step, `a0·Δv_max·BL·dt_sim` (m/s).
+    pub accel_step: f32,
+    /// Per-step actions: yaw `a2·θ_step` and pitch `a1·θ_step` per physics step (rad).
+    pub yaw_step: f32,
+    pub pitch_step: f32,
+    /// A velocity change to apply at the next physics step (m/s): the contact
+    /// kicks and pushes of SPEC §6.1.
+    pub kick: Vec3,
+}
+
+/// Terms that accrue at every physics step (SPEC §6.1), summed since the decision.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Accrued {
+    /// `r_M` summed over the steps.
+    pub movement: f32,
+    /// `r_BD` summed over the steps.
+    pub boundary_distance: f32,
+    /// `r_E` summed over the steps.
+    pub energy: f32,
+    /// Contacts that started (a partner not touched at the previous step).
+    pub contact_starts: u32,
 }
 
 /// What happened to a fish since its last decision, and its episode counters.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Since {
-    /// Its collider crossed a boundary (it has been respawned).
+    /// Its collider crossed a boundary (it has been respawned, or bounced back
+    /// inside when the profile keeps the episode going).
     pub crossed: bool,
     /// As an aggressor, it touched its target.
     pub caught: bool,
@@ -43,6 +68,11 @@ pub(crate) struct Since {
     pub spawns: u32,
     /// Decisions in the current episode.
     pub episode_len: u32,
+    /// Per-step terms accrued since the decision (SPEC §6.1).
+    pub accrued: Accrued,
+    /// The partners overlapping at the previous physics step (to find contact starts).
+    pub n_touching: u8,
+    pub touching: [u32; MAX_HITS],
 }
 
 impl Default for Since {
@@ -57,6 +87,9 @@ impl Default for Since {
             start_heading: Vec3::Z,
             spawns: 0,
             episode_len: 0,
+            accrued: Accrued::default(),
+            n_touching: 0,
+            touching: [0; MAX_HITS],
         }
     }
 }
@@ -92,6 +125,12 @@ impl Since {
         self.crossed = false;
         self.caught = false;
         self.start_heading = heading;
+        self.accrued = Accrued::default();
+    }
+
+    /// Whether fish `j` overlapped this one at the previous physics step.
+    pub fn was_touching(&self, j: u32) -> bool {
+        self.touching[..(self.n_touching as usize).min(MAX_HITS)].contains(&j)
     }
 }
 

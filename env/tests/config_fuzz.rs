@@ -78,7 +78,7 @@ const FILES: [&str; 7] = [
     "species/seabream.toml",
     "species/coho.toml",
     "sites/nishiki.toml",
-    "rewards/pretrain.toml",
+    "rewards/thesis/pretrain.toml",
     "baselines/foids.toml",
 ];
 
@@ -101,11 +101,7 @@ fn configs_with(file: &str, text: &[u8]) -> PathBuf {
     ));
     let _ = std::fs::remove_dir_all(&root);
     for sub in ["species", "sites", "scenes", "rewards", "baselines"] {
-        std::fs::create_dir_all(root.join(sub)).unwrap();
-        for e in std::fs::read_dir(common::dirs().root.join(sub)).unwrap() {
-            let p = e.unwrap().path();
-            std::fs::copy(&p, root.join(sub).join(p.file_name().unwrap())).unwrap();
-        }
+        common::copy_dir(&common::dirs().root.join(sub), &root.join(sub));
     }
     std::fs::write(root.join(file), text).unwrap();
     root

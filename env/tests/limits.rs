@@ -144,15 +144,15 @@ fn species_site_and_reward_values_have_bounds() {
         e.contains("surface_light_max") && e.contains("finite"),
         "{e}"
     );
-    let root = configs_with("reward", "rewards/pretrain.toml", |t| {
+    let root = configs_with("reward", "rewards/thesis/pretrain.toml", |t| {
         t.replace("w_nc = 0.5", "w_nc = nan")
     });
     let e = load_err(&root, "seabream_default");
     assert!(
-        e.contains("rewards/pretrain.toml") && e.contains("w_nc") && e.contains("finite"),
+        e.contains("rewards/thesis/pretrain.toml") && e.contains("w_nc") && e.contains("finite"),
         "{e}"
     );
-    let root = configs_with("reward-big", "rewards/pretrain.toml", |t| {
+    let root = configs_with("reward-big", "rewards/thesis/pretrain.toml", |t| {
         t.replace("catch_bonus = 100.0", "catch_bonus = 1e12")
     });
     let e = load_err(&root, "seabream_default");

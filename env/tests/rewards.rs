@@ -1,8 +1,22 @@
 //! Each reward term on hand-built scenes (SPEC §6). Seabream, BL = 0.34 m,
 //! d_sense = 1.02 m, k = 5, decision 0.1 s, pretraining weights; light and
 //! temperature never push (the helpers widen the light band; 21–22 °C is preferred).
+//! The terms' definitions in the `legacy` profile's timing (every term once per
+//! decision, the action spread over the decision, no contact kicks); the
+//! per-step timing of SPEC §4 / §6.1 is tested in timing.rs.
 mod common;
 use common::*;
+
+/// Scene `id` with `n` fish in the `legacy` profile's timing.
+fn scene(id: &str, n: usize) -> deepfoids_env::Scene {
+    use deepfoids_env::config::{ActionTiming, RewardTiming};
+    let mut s = common::scene(id, n);
+    s.rewards.timing.actions = ActionTiming::PerDecision;
+    s.rewards.timing.rewards = RewardTiming::PerDecision;
+    s.rewards.contacts.kick = 0.0;
+    s.rewards.contacts.push = 0.0;
+    s
+}
 use deepfoids_env::Chase;
 use glam::Vec3;
 

@@ -23,21 +23,25 @@ fn speeds_after(a0: f32, start_bl: f32, n: usize, params: Option<FishParams>) ->
 }
 
 /// Regression (issue 11: "a policy can park its fish"): full braking from
-/// 1 BL/s asks for 1 − 4.1 < 0.2 and gets the floor, 0.2 BL/s, at every
-/// decision after; full acceleration from 0.2 asks for 4.3 and gets 2.7.
+/// 1 BL/s changes the speed by −4.1 BL/s per second (SPEC §4), −0.41 per
+/// decision of k = 5 steps: 0.59, then the floor 0.2 BL/s at every decision
+/// after; full acceleration from 0.2 climbs by 0.41 per decision and stops at 2.7.
 #[test]
 fn braking_stops_at_the_floor_and_acceleration_at_the_maximum() {
-    for s in speeds_after(-1.0, 1.0, 4, None) {
-        assert!(close(s, 0.2, 1e-5), "{s}");
+    let want = [0.59, 0.2, 0.2, 0.2];
+    for (s, w) in speeds_after(-1.0, 1.0, 4, None).into_iter().zip(want) {
+        assert!(close(s, w, 1e-5), "{s} vs {w}");
     }
-    for s in speeds_after(1.0, 0.2, 3, None) {
-        assert!(close(s, 2.7, 1e-5), "{s}");
+    let want = [0.61, 1.02, 1.43, 1.84, 2.25, 2.66, 2.7, 2.7];
+    for (s, w) in speeds_after(1.0, 0.2, 8, None).into_iter().zip(want) {
+        assert!(close(s, w, 1e-4), "{s} vs {w}");
     }
 }
 
 /// A model with its own speed range (Foids at night: [0, 0.4] BL/s) may go
 /// below the species' floor — only when it says so: full braking from 1 BL/s
-/// then reaches 0 (the fish keeps its heading), and full acceleration 0.4.
+/// (clamped into the range, 0.4, at the decision) then reaches 0 (the fish
+/// keeps its heading), and full acceleration 0.4.
 #[test]
 fn fish_params_set_their_own_range() {
     let night = FishParams {

@@ -12,35 +12,13 @@
 //! Checkpoint folders appear atomically (written under a temporary name, then
 //! renamed), so a kill at any moment leaves only whole checkpoints.
 
+pub use crate::algorithm::Algorithm;
 use crate::body::ENCODER_LAYOUT;
 use crate::error::{LearnError, Result};
 use burn::module::Module;
 use deepfoids_env::Phase;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
-
-/// The training algorithm of a run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Algorithm {
-    Ppo,
-    Sac,
-}
-
-impl Algorithm {
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            Algorithm::Ppo => "ppo",
-            Algorithm::Sac => "sac",
-        }
-    }
-}
-
-impl std::fmt::Display for Algorithm {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
 
 /// Per-behaviour training state.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -181,7 +159,7 @@ pub fn save_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
         path: path.to_path_buf(),
         reason: e.to_string(),
     })?;
-    deepfoids_env::io::write_atomic(path, text.as_bytes()).map_err(LearnError::io(path))
+    deepfoids_io::write_atomic(path, text.as_bytes()).map_err(LearnError::io(path))
 }
 
 /// Read JSON that should hold `what`.

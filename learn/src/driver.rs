@@ -273,7 +273,7 @@ struct Behaviour<L> {
 }
 
 /// The run folder of a training run. The caller holds its lock
-/// (`deepfoids_env::lock::DirLock`, taken by the `train` and `pipeline`
+/// (`deepfoids_io::DirLock`, taken by the `train` and `pipeline`
 /// commands for the life of the process) and has checked `--init-from`
 /// ([`open_sources`]) before creating it.
 pub fn open_run(run_dir: &Path) -> Result<()> {
@@ -312,40 +312,14 @@ pub fn open_sources<T: Trainer>(
 }
 
 /// Train `trainer`'s algorithm on a scene. See the module documentation.
-pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
-    // ---- Arguments ---------------------------------------------------------------
-    let algo = trainer.algorithm();
-    let settings = trainer.settings();
-    let (hidden, layers) = trainer.architecture();
-    let run_dir = args.run_dir.clone();
-    open_run(&run_dir)?;
-    let phase = args.scene.phase;
-    let resume_resume = |reason: String| LearnError::Resume {
-        run: run_dir.clone(),
-        reason,
-    };
-    let resumed: Option<(PathBuf, RunState)> = if args.resume {
-        let (_, dir) = checkpoint::checkpoints(&run_dir)
-            .pop()
-            .ok_or_else(|| resume_resume("it has no checkpoint to resume from".into()))?;
-        let st = RunState::load_policy(&dir, algo, "--resume continues the run's own algorithm")?;
-        if st.scene != args.scene.id {
-            return Err(resume_resume(format!(
-                "the run trained on {}, not {}",
-                st.scene, args.scene.id
-            )));
-        }
-        st.check_architecture(&dir, hidden, layers, trainer.config_name())?;
-        Some((dir, st))
-    } else {
-        None
-    };
+pub fn run<T: Trainer>(trainer: &T, mut args: RunArgs) -> Result<TrainOutcome> {
+    open_run(&args.run_dir)?;
+    let resumed = resume_point(trainer, &args)?;
     let sources: Vec<PolicySource> = if resumed.is_none() {
         open_sources(trainer, &args.init_from, &args.scene)?
     } else {
         vec![]
     };
-
     if let Some((dir, st)) = &resumed {
         eprintln!(
             "resumed from step {} (checkpoint {})",
@@ -353,17 +327,147 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
             dir.display()
         );
     }
+    let mut session = setup(trainer, &mut args, resumed, &sources)?;
+    session.first_actions(args.seed)?;
+    session.train(&args, &trainer.settings())?;
+    session.finish(&args)
+}
 
+/// `--resume`: the newest checkpoint and its state, which must be of this
+/// algorithm, scene and architecture.
+fn resume_point<T: Trainer>(trainer: &T, args: &RunArgs) -> Result<Option<(PathBuf, RunState)>> {
+    if !args.resume {
+        return Ok(None);
+    }
+    let (hidden, layers) = trainer.architecture();
+    let resume_error = |reason: String| LearnError::Resume {
+        run: args.run_dir.clone(),
+        reason,
+    };
+    let (_, dir) = checkpoint::checkpoints(&args.run_dir)
+        .pop()
+        .ok_or_else(|| resume_error("it has no checkpoint to resume from".into()))?;
+    let st = RunState::load_policy(
+        &dir,
+        trainer.algorithm(),
+        "--resume continues the run's own algorithm",
+    )?;
+    if st.scene != args.scene.id {
+        return Err(resume_error(format!(
+            "the run trained on {}, not {}",
+            st.scene, args.scene.id
+        )));
+    }
+    st.check_architecture(&dir, hidden, layers, trainer.config_name())?;
+    Ok(Some((dir, st)))
+}
+
+/// Everything the loop changes, from [`setup`] to [`Session::finish`].
+struct Session<L> {
+    env: Env,
+    tick: u64,
+    behaviours: Vec<Behaviour<L>>,
+    actions: Vec<Vec<f32>>,
+    state: RunState,
+    logger: Logger,
+    progress: Progress,
+    timing: Timing,
+    /// `(agent steps, reward per decision)` and `(agent steps, cumulative
+    /// reward per episode)` at every log point.
+    curve: Vec<(u64, f64)>,
+    episode_curve: Vec<(u64, f64)>,
+    /// Agent steps, wall seconds and updates before this process.
+    start_steps: u64,
+    wall_before: f64,
+    updates_before: u64,
+    started: Instant,
+}
+
+/// The environment (reseeded on resume), one learner per behaviour (fresh,
+/// resumed or transferred), the logger, the run state and the progress.
+fn setup<T: Trainer>(
+    trainer: &T,
+    args: &mut RunArgs,
+    resumed: Option<(PathBuf, RunState)>,
+    sources: &[PolicySource],
+) -> Result<Session<T::Learner>> {
+    let (hidden, layers) = trainer.architecture();
+    let settings = trainer.settings();
     // ---- Environment -------------------------------------------------------------
     let resets = resumed.as_ref().map_or(0, |s| s.1.resets + 1);
-    let mut env = Env::new(args.scene.clone(), args.seed.wrapping_add(resets));
-    let mut tick = resumed.as_ref().map_or(0, |s| s.1.ticks);
-
+    let env = Env::new(args.scene.clone(), args.seed.wrapping_add(resets));
+    let tick = resumed.as_ref().map_or(0, |s| s.1.ticks);
     // ---- Learners: one per behaviour ---------------------------------------------
+    let behaviours = learners(trainer, args, &env, resumed.as_ref(), sources)?;
+    let names: Vec<String> = behaviours.iter().map(|b| b.name.clone()).collect();
+    let resumed_at: Option<Vec<u64>> = resumed
+        .as_ref()
+        .map(|_| behaviours.iter().map(|b| b.agent_steps).collect());
+    let logger = Logger::open(&args.run_dir, &names, resumed_at.as_deref())?;
+    let mut state = resumed.map(|s| s.1).unwrap_or_else(|| RunState {
+        algo: trainer.algorithm(),
+        layout: crate::body::ENCODER_LAYOUT,
+        run_id: args.run_id.clone(),
+        scene: args.scene.id.clone(),
+        phase: args.scene.phase,
+        seed: args.seed,
+        backend: args.backend.as_str().into(),
+        agent_steps: 0,
+        ticks: 0,
+        resets: 0,
+        wall_seconds: 0.0,
+        init_from: args
+            .init_from
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
+        hidden,
+        layers,
+        behaviours: vec![],
+    });
+    state.resets = resets;
+    let total_budget: u64 = behaviours.iter().map(|b| b.budget).sum();
+    let done: u64 = behaviours.iter().map(|b| b.agent_steps.min(b.budget)).sum();
+    let progress = Progress::new(
+        args.progress,
+        total_budget,
+        done,
+        &behaviours.iter().map(|b| b.agent_steps).collect::<Vec<_>>(),
+        settings.progress_every,
+        args.progress_sink.take(),
+    );
+    Ok(Session {
+        env,
+        tick,
+        actions: behaviours.iter().map(|b| vec![0.0; b.n * 3]).collect(),
+        start_steps: state.agent_steps,
+        wall_before: state.wall_seconds,
+        updates_before: behaviours.iter().map(|b| b.learner.updates()).sum(),
+        behaviours,
+        state,
+        logger,
+        progress,
+        timing: Timing::default(),
+        curve: Vec::new(),
+        episode_curve: Vec::new(),
+        started: Instant::now(),
+    })
+}
+
+/// One learner per behaviour of `env`: resumed from the checkpoint, else
+/// transferred from a source policy, else fresh.
+fn learners<T: Trainer>(
+    trainer: &T,
+    args: &RunArgs,
+    env: &Env,
+    resumed: Option<&(PathBuf, RunState)>,
+    sources: &[PolicySource],
+) -> Result<Vec<Behaviour<T::Learner>>> {
+    let phase = args.scene.phase;
     let device = args.backend.device();
     let train_device = device.clone().autodiff();
     device.seed(args.seed);
-    let mut behaviours: Vec<Behaviour<T::Learner>> = Vec::new();
+    let mut behaviours = Vec::new();
     for (b, info) in env.behaviours().iter().enumerate() {
         let ctx = LearnerCtx {
             info,
@@ -375,18 +479,19 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
             device: device.clone(),
         };
         let mut agent_steps = 0;
-        let learner = if let Some((dir, st)) = &resumed {
-            let bs = st.behaviour(&info.name).ok_or_else(|| {
-                resume_resume(format!(
+        let learner = if let Some((dir, st)) = resumed {
+            let bs = st.behaviour(&info.name).ok_or_else(|| LearnError::Resume {
+                run: args.run_dir.clone(),
+                reason: format!(
                     "checkpoint {} has no behaviour {}",
                     dir.display(),
                     info.name
-                ))
+                ),
             })?;
             agent_steps = bs.agent_steps;
             trainer.resume_learner(&ctx, dir, bs)?
         } else if !sources.is_empty() {
-            let (src, bs) = find_source(&sources, &info.name, &info.species)?;
+            let (src, bs) = find_source(sources, &info.name, &info.species)?;
             trainer.transfer_learner(&ctx, &src.dir, bs)?
         } else {
             trainer.new_learner(&ctx)?
@@ -405,167 +510,158 @@ pub fn run<T: Trainer>(trainer: &T, args: RunArgs) -> Result<TrainOutcome> {
             stats: EpisodeStats::new(info.first, info.count),
         });
     }
-    let names: Vec<String> = behaviours.iter().map(|b| b.name.clone()).collect();
-    let resumed_at: Option<Vec<u64>> = resumed
-        .as_ref()
-        .map(|_| behaviours.iter().map(|b| b.agent_steps).collect());
-    let mut logger = Logger::open(&run_dir, &names, resumed_at.as_deref())?;
-    let mut state = resumed.map(|s| s.1).unwrap_or_else(|| RunState {
-        algo,
-        layout: crate::body::ENCODER_LAYOUT,
-        run_id: args.run_id.clone(),
-        scene: args.scene.id.clone(),
-        phase,
-        seed: args.seed,
-        backend: args.backend.as_str().into(),
-        agent_steps: 0,
-        ticks: 0,
-        resets: 0,
-        wall_seconds: 0.0,
-        init_from: args
-            .init_from
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect(),
-        hidden,
-        layers,
-        behaviours: vec![],
-    });
-    state.resets = resets;
-    let start_steps = state.agent_steps;
-    let total_budget: u64 = behaviours.iter().map(|b| b.budget).sum();
-    let done: u64 = behaviours.iter().map(|b| b.agent_steps.min(b.budget)).sum();
-    let mut progress = Progress::new(
-        args.progress,
-        total_budget,
-        done,
-        &behaviours.iter().map(|b| b.agent_steps).collect::<Vec<_>>(),
-        settings.progress_every,
-        args.progress_sink,
-    );
-    let mut next_checkpoint =
-        (state.agent_steps / settings.checkpoint_every + 1) * settings.checkpoint_every;
-    let mut timing = Timing::default();
-    let (mut curve, mut episode_curve) = (Vec::new(), Vec::new());
-    let started = Instant::now();
-    let wall_before = state.wall_seconds;
-    let updates_before: u64 = behaviours.iter().map(|b| b.learner.updates()).sum();
-    let mut actions: Vec<Vec<f32>> = behaviours.iter().map(|b| vec![0.0; b.n * 3]).collect();
+    Ok(behaviours)
+}
 
-    // First actions from the initial observations.
-    for (b, beh) in behaviours.iter_mut().enumerate() {
-        let training = beh.agent_steps < beh.budget;
-        let mut ctx = StepCtx {
-            seed: args.seed,
-            tick,
-            training,
-            agent_steps: beh.agent_steps,
-            budget: beh.budget,
-            timing: &mut timing,
-        };
-        beh.learner
-            .start(&env.output().behaviours[b], &mut actions[b], &mut ctx)?;
-        beh.acting_for_training = training;
-    }
-
-    // ---- The loop ----------------------------------------------------------------
-    while behaviours.iter().any(|b| b.agent_steps < b.budget) {
-        let t0 = Instant::now();
-        let out = env.step(&actions)?;
-        tick += 1;
-        timing.env += t0.elapsed();
-        for (b, beh) in behaviours.iter_mut().enumerate() {
-            let batch = &out.behaviours[b];
-            if !batch.decided {
-                continue;
-            }
-            if beh.acting_for_training {
-                beh.stats.record(batch, out);
-                beh.agent_steps += beh.n as u64;
-                state.agent_steps += beh.n as u64;
-            }
+impl<L: Learner> Session<L> {
+    /// First actions from the initial observations.
+    fn first_actions(&mut self, seed: u64) -> Result<()> {
+        for (b, beh) in self.behaviours.iter_mut().enumerate() {
             let training = beh.agent_steps < beh.budget;
             let mut ctx = StepCtx {
-                seed: args.seed,
-                tick,
+                seed,
+                tick: self.tick,
                 training,
                 agent_steps: beh.agent_steps,
                 budget: beh.budget,
-                timing: &mut timing,
+                timing: &mut self.timing,
             };
-            beh.learner.decide(batch, &mut actions[b], &mut ctx)?;
-            let was_training = beh.acting_for_training;
+            beh.learner.start(
+                &self.env.output().behaviours[b],
+                &mut self.actions[b],
+                &mut ctx,
+            )?;
             beh.acting_for_training = training;
-            let finished_now = was_training && !training;
-            if !(beh.learner.log_due(beh.agent_steps) || finished_now && beh.stats.decisions() > 0)
-            {
-                continue;
-            }
-            let mut sc = Scalars {
-                logger: &mut logger,
-                behaviour: b,
-                step: beh.agent_steps,
-            };
-            let summary = beh.stats.log(&mut sc)?;
-            beh.learner.log(&mut sc)?;
-            let rate = (state.agent_steps - start_steps) as f64
-                / started.elapsed().as_secs_f64().max(1e-9);
-            sc.put("Perf/Agent Steps per Second", rate)?;
-            logger.flush()?;
-            curve.push((state.agent_steps, summary.reward_per_decision));
-            if let Some(ep) = summary.cumulative_reward {
-                episode_curve.push((state.agent_steps, ep));
-            }
-            progress.message(format!(
-                "{}: reward/decision {:.2}",
-                beh.name, summary.reward_per_decision
-            ));
-            if progress.line_due(b, beh.agent_steps) || finished_now {
-                let s = beh.stats.take_progress();
-                progress.print_line(b, &beh.name, beh.agent_steps, beh.budget, rate, &s);
-            }
         }
-        progress.set_position(behaviours.iter().map(|b| b.agent_steps.min(b.budget)).sum());
-        if args.save && state.agent_steps >= next_checkpoint {
-            state.ticks = tick;
-            state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
-            let dir = checkpoint::checkpoint_dir(&run_dir, state.agent_steps);
-            for b in &mut behaviours {
-                b.learner.before_checkpoint()?;
-            }
-            save_all(&dir, &behaviours, &mut state, true, false)?;
-            checkpoint::prune(&run_dir, settings.keep_checkpoints);
-            logger.flush()?;
-            while next_checkpoint <= state.agent_steps {
-                next_checkpoint += settings.checkpoint_every;
-            }
-        }
+        Ok(())
     }
-    state.ticks = tick;
-    state.wall_seconds = wall_before + started.elapsed().as_secs_f64();
-    let final_dir = if args.save {
-        let fin = run_dir.join("final");
-        save_all(&fin, &behaviours, &mut state, false, true)?;
-        Some(fin)
-    } else {
-        None
-    };
-    logger.close()?;
-    progress.finish();
-    Ok(TrainOutcome {
-        run_dir,
-        agent_steps: state.agent_steps,
-        steps_this_run: state.agent_steps - start_steps,
-        wall_seconds: started.elapsed().as_secs_f64(),
-        timing,
-        curve,
-        episode_curve,
-        final_dir,
-        buffer: behaviours
-            .iter()
-            .fold(BufferMemory::default(), |m, b| m + b.learner.memory()),
-        updates: behaviours.iter().map(|b| b.learner.updates()).sum::<u64>() - updates_before,
-    })
+
+    /// The loop: step, let each behaviour that decided record, learn and
+    /// act, log when due, checkpoint when due — until every behaviour has
+    /// its budget.
+    fn train(&mut self, args: &RunArgs, settings: &RunSettings) -> Result<()> {
+        let mut next_checkpoint =
+            (self.state.agent_steps / settings.checkpoint_every + 1) * settings.checkpoint_every;
+        while self.behaviours.iter().any(|b| b.agent_steps < b.budget) {
+            let t0 = Instant::now();
+            let out = self.env.step(&self.actions)?;
+            self.tick += 1;
+            self.timing.env += t0.elapsed();
+            for (b, beh) in self.behaviours.iter_mut().enumerate() {
+                let batch = &out.behaviours[b];
+                if !batch.decided {
+                    continue;
+                }
+                if beh.acting_for_training {
+                    beh.stats.record(batch, out);
+                    beh.agent_steps += beh.n as u64;
+                    self.state.agent_steps += beh.n as u64;
+                }
+                let training = beh.agent_steps < beh.budget;
+                let mut ctx = StepCtx {
+                    seed: args.seed,
+                    tick: self.tick,
+                    training,
+                    agent_steps: beh.agent_steps,
+                    budget: beh.budget,
+                    timing: &mut self.timing,
+                };
+                beh.learner.decide(batch, &mut self.actions[b], &mut ctx)?;
+                let was_training = beh.acting_for_training;
+                beh.acting_for_training = training;
+                let finished_now = was_training && !training;
+                if !(beh.learner.log_due(beh.agent_steps)
+                    || finished_now && beh.stats.decisions() > 0)
+                {
+                    continue;
+                }
+                let mut sc = Scalars {
+                    logger: &mut self.logger,
+                    behaviour: b,
+                    step: beh.agent_steps,
+                };
+                let summary = beh.stats.log(&mut sc)?;
+                beh.learner.log(&mut sc)?;
+                let rate = (self.state.agent_steps - self.start_steps) as f64
+                    / self.started.elapsed().as_secs_f64().max(1e-9);
+                sc.put("Perf/Agent Steps per Second", rate)?;
+                self.logger.flush()?;
+                self.curve
+                    .push((self.state.agent_steps, summary.reward_per_decision));
+                if let Some(ep) = summary.cumulative_reward {
+                    self.episode_curve.push((self.state.agent_steps, ep));
+                }
+                self.progress.message(format!(
+                    "{}: reward/decision {:.2}",
+                    beh.name, summary.reward_per_decision
+                ));
+                if self.progress.line_due(b, beh.agent_steps) || finished_now {
+                    let s = beh.stats.take_progress();
+                    self.progress
+                        .print_line(b, &beh.name, beh.agent_steps, beh.budget, rate, &s);
+                }
+            }
+            self.progress.set_position(
+                self.behaviours
+                    .iter()
+                    .map(|b| b.agent_steps.min(b.budget))
+                    .sum(),
+            );
+            if args.save && self.state.agent_steps >= next_checkpoint {
+                self.checkpoint(&args.run_dir, settings)?;
+                while next_checkpoint <= self.state.agent_steps {
+                    next_checkpoint += settings.checkpoint_every;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A checkpoint of every behaviour at the current agent steps; the
+    /// oldest beyond `keep_checkpoints` are pruned.
+    fn checkpoint(&mut self, run_dir: &Path, settings: &RunSettings) -> Result<()> {
+        self.state.ticks = self.tick;
+        self.state.wall_seconds = self.wall_before + self.started.elapsed().as_secs_f64();
+        let dir = checkpoint::checkpoint_dir(run_dir, self.state.agent_steps);
+        for b in &mut self.behaviours {
+            b.learner.before_checkpoint()?;
+        }
+        save_all(&dir, &self.behaviours, &mut self.state, true, false)?;
+        checkpoint::prune(run_dir, settings.keep_checkpoints);
+        self.logger.flush()?;
+        Ok(())
+    }
+
+    /// `final/` (weights, state, ONNX), the logs closed, and the outcome.
+    fn finish(mut self, args: &RunArgs) -> Result<TrainOutcome> {
+        self.state.ticks = self.tick;
+        self.state.wall_seconds = self.wall_before + self.started.elapsed().as_secs_f64();
+        let final_dir = if args.save {
+            let fin = args.run_dir.join("final");
+            save_all(&fin, &self.behaviours, &mut self.state, false, true)?;
+            Some(fin)
+        } else {
+            None
+        };
+        self.logger.close()?;
+        self.progress.finish();
+        let behaviours = &self.behaviours;
+        Ok(TrainOutcome {
+            run_dir: args.run_dir.clone(),
+            agent_steps: self.state.agent_steps,
+            steps_this_run: self.state.agent_steps - self.start_steps,
+            wall_seconds: self.started.elapsed().as_secs_f64(),
+            timing: self.timing,
+            curve: self.curve,
+            episode_curve: self.episode_curve,
+            final_dir,
+            buffer: behaviours
+                .iter()
+                .fold(BufferMemory::default(), |m, b| m + b.learner.memory()),
+            updates: behaviours.iter().map(|b| b.learner.updates()).sum::<u64>()
+                - self.updates_before,
+        })
+    }
 }
 
 /// Save every learner and the run state into `dir` (a checkpoint, or

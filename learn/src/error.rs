@@ -1,6 +1,6 @@
 //! The learning crates' errors: each says what was wrong, where, and what is allowed.
 
-use crate::checkpoint::Algorithm;
+use crate::algorithm::Algorithm;
 use std::path::PathBuf;
 
 /// Everything training, loading or saving a policy can fail with.

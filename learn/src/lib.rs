@@ -6,6 +6,7 @@
 //! transfer (`--init-from`), the environment loop, budgets, checkpoints and
 //! the outcome. An algorithm plugs in as a [`driver::Trainer`].
 
+pub mod algorithm;
 pub mod backend;
 pub mod body;
 pub mod checkpoint;
@@ -21,9 +22,9 @@ pub mod stats;
 pub mod tensor;
 pub mod tfevents;
 
+pub use algorithm::Algorithm;
 pub use backend::Backend;
 pub use body::{ACTIONS, Body, BodyConfig, ENCODER_LAYOUT};
-pub use checkpoint::Algorithm;
 pub use driver::{
     BufferMemory, Learner, LearnerCtx, RunArgs, RunSettings, StepCtx, Timing, TrainOutcome, Trainer,
 };

@@ -128,7 +128,7 @@ fn truncate_csv(path: &Path, at: &BTreeMap<&str, u64>) -> Result<()> {
         }
     }
     if kept.len() != text.len() {
-        deepfoids_env::io::write_atomic(path, kept.as_bytes()).map_err(LearnError::io(path))?;
+        deepfoids_io::write_atomic(path, kept.as_bytes()).map_err(LearnError::io(path))?;
     }
     Ok(())
 }

@@ -4,6 +4,7 @@
 use crate::checkpoint::{BehaviourState, PolicySource, RunState, find_source, policy_dir};
 use crate::error::Result;
 use crate::onnx::Metadata;
+use deepfoids_env::config::ActionTiming;
 use deepfoids_env::{Env, Policy, PolicyError};
 use std::path::{Path, PathBuf};
 
@@ -43,6 +44,26 @@ pub struct ActorPolicy {
     /// The policy folder (final/ or a checkpoint).
     pub source: PathBuf,
     pub state: RunState,
+    /// How the policy was trained to act (SPEC §4), from its run's `config.toml`.
+    pub action_timing: Option<ActionTiming>,
+}
+
+/// How the policy of run folder `run` was trained to act (SPEC §4): its
+/// `config.toml`'s `[scene.rewards.timing] actions`. A run trained before
+/// per-step actions existed has no such key and acted per decision. `None`
+/// when the folder has no readable `config.toml`.
+pub fn trained_action_timing(run: &Path) -> Option<ActionTiming> {
+    let text = std::fs::read_to_string(run.join("config.toml")).ok()?;
+    let config: toml::Table = text.parse().ok()?;
+    let rewards = config.get("scene")?.get("rewards")?;
+    let actions = rewards
+        .get("timing")
+        .and_then(|t| t.get("actions"))
+        .and_then(|a| a.as_str());
+    Some(match actions {
+        Some("per_step") => ActionTiming::PerStep,
+        _ => ActionTiming::PerDecision,
+    })
 }
 
 impl ActorPolicy {
@@ -76,6 +97,7 @@ impl ActorPolicy {
             seed,
             source: dir,
             state,
+            action_timing: trained_action_timing(run),
         })
     }
 
@@ -88,6 +110,10 @@ impl ActorPolicy {
 impl Policy for ActorPolicy {
     fn name(&self) -> String {
         format!("{} ({})", self.state.run_id, self.state.algo)
+    }
+
+    fn action_timing(&self) -> Option<ActionTiming> {
+        self.action_timing
     }
 
     fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
@@ -110,5 +136,29 @@ impl Policy for ActorPolicy {
             };
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run's config.toml names its action timing; one written before the
+    /// per-step reading has none and acted per decision; no file, no timing.
+    #[test]
+    fn a_run_remembers_how_its_policy_acts() {
+        let dir = std::env::temp_dir().join(format!("deepfoids-timing-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        assert_eq!(trained_action_timing(&dir), None);
+        let config = dir.join("config.toml");
+        std::fs::write(&config, "[scene.rewards]\nw_nd = 1.5\n").unwrap();
+        assert_eq!(trained_action_timing(&dir), Some(ActionTiming::PerDecision));
+        std::fs::write(
+            &config,
+            "[scene.rewards]\nw_nd = 1.5\n[scene.rewards.timing]\nactions = \"per_step\"\n",
+        )
+        .unwrap();
+        assert_eq!(trained_action_timing(&dir), Some(ActionTiming::PerStep));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -161,7 +161,7 @@ pub fn truncate_after(dir: &Path, step: u64) -> Result<usize> {
             }
         }
         if cut > 0 {
-            deepfoids_env::io::write_atomic(&path, &kept).map_err(LearnError::io(&path))?;
+            deepfoids_io::write_atomic(&path, &kept).map_err(LearnError::io(&path))?;
             dropped += cut;
         }
     }

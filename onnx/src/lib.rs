@@ -8,4 +8,4 @@ pub mod runtime;
 
 #[cfg(feature = "export")]
 pub use deepfoids_learn::onnx::{Head, Metadata, OPSET, export, export_policy, proto};
-pub use runtime::{OnnxPolicy, check_species};
+pub use runtime::{OnnxError, OnnxPolicy, check_species};

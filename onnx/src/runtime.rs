@@ -1,6 +1,5 @@
 //! An exported policy driving scenes through tract (pure-Rust ONNX runtime).
 
-use anyhow::{Context, Result, bail};
 use deepfoids_env::{Env, Policy, PolicyError, VECTOR_OBS};
 use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
 use std::collections::HashMap;
@@ -8,6 +7,40 @@ use std::path::{Path, PathBuf};
 use tract_onnx::prelude::*;
 
 type Plan = Arc<TypedRunnableModel>;
+
+/// What went wrong with an ONNX policy; each message names the file. (The
+/// underlying error is part of the message, not a `source`, so that one
+/// line says it all wherever it is printed.)
+#[derive(Debug, thiserror::Error)]
+pub enum OnnxError {
+    #[error("cannot read {}: {error}", path.display())]
+    Read {
+        path: PathBuf,
+        error: std::io::Error,
+    },
+    #[error("{} is not a loadable ONNX model: {error}", path.display())]
+    NotOnnx { path: PathBuf, error: TractError },
+    #[error("{} has no output `{name}` (outputs: {})", path.display(), outputs.join(", "))]
+    MissingOutput {
+        path: PathBuf,
+        name: String,
+        outputs: Vec<String>,
+    },
+    #[error("tract cannot prepare {}: {error}", path.display())]
+    Prepare { path: PathBuf, error: TractError },
+    /// Running the model on a batch failed (wrong sizes, or tract's error).
+    #[error("{}: {error}", path.display())]
+    Run { path: PathBuf, error: TractError },
+    #[error("{} is a {species} policy; scene {scene} also holds {}", path.display(), others.join(", "))]
+    WrongSpecies {
+        path: PathBuf,
+        species: String,
+        scene: String,
+        others: Vec<String>,
+    },
+}
+
+pub type Result<T, E = OnnxError> = std::result::Result<T, E>;
 
 /// An ONNX policy file, loaded with tract.
 pub struct OnnxPolicy {
@@ -23,13 +56,20 @@ pub struct OnnxPolicy {
 
 impl OnnxPolicy {
     pub fn load(path: &Path, stochastic: bool) -> Result<Self> {
-        let bytes =
-            std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let bytes = std::fs::read(path).map_err(|error| OnnxError::Read {
+            path: path.to_path_buf(),
+            error,
+        })?;
+        let not_onnx = |error| OnnxError::NotOnnx {
+            path: path.to_path_buf(),
+            error,
+        };
         let inference = tract_onnx::onnx()
             .model_for_read(&mut bytes.as_slice())
-            .map_err(|e| anyhow::anyhow!("{} is not a loadable ONNX model: {e}", path.display()))?;
+            .map_err(not_onnx)?;
         let names: Vec<String> = inference
-            .output_outlets()?
+            .output_outlets()
+            .map_err(not_onnx)?
             .iter()
             .map(|o| {
                 inference
@@ -38,13 +78,14 @@ impl OnnxPolicy {
             })
             .collect();
         let find = |n: &str| {
-            names.iter().position(|x| x == n).with_context(|| {
-                format!(
-                    "{} has no output `{n}` (outputs: {})",
-                    path.display(),
-                    names.join(", ")
-                )
-            })
+            names
+                .iter()
+                .position(|x| x == n)
+                .ok_or_else(|| OnnxError::MissingOutput {
+                    path: path.to_path_buf(),
+                    name: n.to_string(),
+                    outputs: names.clone(),
+                })
         };
         let (deterministic_output, sampled_output) = (
             find("deterministic_continuous_actions")?,
@@ -53,7 +94,10 @@ impl OnnxPolicy {
         let plan = inference
             .into_optimized()
             .and_then(|m| m.into_runnable())
-            .map_err(|e| anyhow::anyhow!("tract cannot prepare {}: {e}", path.display()))?;
+            .map_err(|error| OnnxError::Prepare {
+                path: path.to_path_buf(),
+                error,
+            })?;
         Ok(Self {
             plan,
             deterministic_output,
@@ -66,6 +110,14 @@ impl OnnxPolicy {
 
     /// Actions `[n, 3]` for `n` observations (`grids` `[n, 18, 20, 34]`, `vectors` `[n, 6]`).
     pub fn run(&self, grids: &[f32], vectors: &[f32], n: usize) -> Result<Vec<f32>> {
+        self.run_tract(grids, vectors, n)
+            .map_err(|error| OnnxError::Run {
+                path: self.path.clone(),
+                error,
+            })
+    }
+
+    fn run_tract(&self, grids: &[f32], vectors: &[f32], n: usize) -> TractResult<Vec<f32>> {
         let g = Tensor::from_shape(&[n, STACKED_CHANNELS, EL_CELLS, AZ_CELLS], grids)?;
         let v = Tensor::from_shape(&[n, VECTOR_OBS], vectors)?;
         let out = self.plan.run(tvec!(g.into(), v.into()))?;
@@ -128,12 +180,12 @@ pub fn check_species(policy: &OnnxPolicy, env: &Env) -> Result<()> {
             .map(|b| b.name.as_str())
             .collect();
         if !others.is_empty() {
-            bail!(
-                "{} is a {species} policy; scene {} also holds {}",
-                policy.path.display(),
-                env.scene().id,
-                others.join(", ")
-            );
+            return Err(OnnxError::WrongSpecies {
+                path: policy.path.clone(),
+                species: species.clone(),
+                scene: env.scene().id.clone(),
+                others: others.into_iter().map(str::to_string).collect(),
+            });
         }
     }
     Ok(())

@@ -11,6 +11,7 @@ use burn::nn::{Linear, LinearConfig};
 use burn::prelude::*;
 use deepfoids_learn::body::{infer_net, small_linear};
 use deepfoids_learn::kernels::infer::InferNet;
+use deepfoids_learn::onnx::{Head, Metadata, export_policy};
 use deepfoids_learn::tensor::to_vec;
 use deepfoids_learn::{ACTIONS, Body, BodyConfig, Grids};
 
@@ -47,6 +48,19 @@ impl ActorCriticConfig {
 }
 
 impl ActorCritic {
+    /// The actor (body and Gaussian head) as ONNX with ML-Agents' interface.
+    pub fn actor_onnx(&self, meta: &Metadata) -> Vec<u8> {
+        let log_std = self.log_std.val();
+        export_policy(
+            &self.actor_body,
+            Head::Gaussian {
+                mean: &self.actor_mean,
+                log_std: &log_std,
+            },
+            meta,
+        )
+    }
+
     /// The Gaussian's mean `[B, 3]`, its log-std `[3]` and the state value
     /// `[B]`; both encoders read the grids in one pass.
     pub fn forward(&self, grids: &Grids, vector: Tensor<2>) -> (Tensor<2>, Tensor<1>, Tensor<1>) {

@@ -10,7 +10,7 @@ use deepfoids_env::rng::{Purpose, Stream};
 use deepfoids_learn::checkpoint::{BehaviourState, RunState, load_module};
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
-use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::onnx::Metadata;
 use deepfoids_learn::policy::Actor;
 use deepfoids_learn::tensor::{tensor2, tensor4, to_vec};
 use deepfoids_learn::{ACTIONS, Algorithm, Result};
@@ -85,15 +85,7 @@ impl Actor for PpoActor {
     }
 
     fn onnx(&self, meta: &Metadata) -> Vec<u8> {
-        let log_std = self.model.log_std.val();
-        export_policy(
-            &self.model.actor_body,
-            Head::Gaussian {
-                mean: &self.model.actor_mean,
-                log_std: &log_std,
-            },
-            meta,
-        )
+        self.model.actor_onnx(meta)
     }
 }
 

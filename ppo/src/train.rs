@@ -55,7 +55,7 @@ use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, RunSettings, St
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::logger::Scalars;
-use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::onnx::Metadata;
 use deepfoids_learn::tensor::{ForceInit, ParamIds, clip_grad_norm, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, BodyConfig, Grids, LearnError, Result};
 use serde::{Deserialize, Serialize};
@@ -101,6 +101,21 @@ pub fn model_file(dir: &Path, name: &str) -> std::path::PathBuf {
     behaviour_file(dir, name, "model.bpk")
 }
 
+/// A learner with fresh optimiser and counters for `model` (new or transferred weights).
+fn fresh_learner(cfg: &PpoConfig, ctx: &LearnerCtx<'_>, model: ActorCritic) -> PpoLearner {
+    PpoLearner::new(
+        cfg.clone(),
+        ctx,
+        model,
+        adam(cfg),
+        PpoState {
+            updates: 0,
+            reward_norm: RunningMeanStd::default(),
+            since_update: 0,
+        },
+    )
+}
+
 impl Trainer for Ppo {
     type Learner = PpoLearner;
 
@@ -132,17 +147,7 @@ impl Trainer for Ppo {
         let cfg = &self.config;
         let model = model_config(cfg.hidden, cfg.layers, cfg.init_log_std).init(&ctx.train_device);
         model.visit(&mut ForceInit);
-        Ok(PpoLearner::new(
-            cfg.clone(),
-            ctx,
-            model,
-            adam(cfg),
-            PpoState {
-                updates: 0,
-                reward_norm: RunningMeanStd::default(),
-                since_update: 0,
-            },
-        ))
+        Ok(fresh_learner(cfg, ctx, model))
     }
 
     fn resume_learner(
@@ -181,17 +186,7 @@ impl Trainer for Ppo {
         let cfg = &self.config;
         let model = model_config(cfg.hidden, cfg.layers, cfg.init_log_std).init(&ctx.train_device);
         let model = load_module(model, &model_file(from, &source.name))?;
-        Ok(PpoLearner::new(
-            cfg.clone(),
-            ctx,
-            model,
-            adam(cfg),
-            PpoState {
-                updates: 0,
-                reward_norm: RunningMeanStd::default(),
-                since_update: 0,
-            },
-        ))
+        Ok(fresh_learner(cfg, ctx, model))
     }
 }
 
@@ -637,15 +632,7 @@ impl Learner for PpoLearner {
     }
 
     fn actor_onnx(&self, meta: &Metadata) -> Vec<u8> {
-        let log_std = self.model.log_std.val();
-        export_policy(
-            &self.model.actor_body,
-            Head::Gaussian {
-                mean: &self.model.actor_mean,
-                log_std: &log_std,
-            },
-            meta,
-        )
+        self.model.actor_onnx(meta)
     }
 
     fn memory(&self) -> BufferMemory {

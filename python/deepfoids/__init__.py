@@ -1,6 +1,6 @@
 """DeepFoids for Python: the Rust fish-school environment as a PettingZoo
 `ParallelEnv` (`parallel_env`), a batch API with numpy buffers (`BatchEnv`),
-and trained policies (`load_policy`). See the README's "Python" section."""
+and trained policies (`load_policy`). See docs/python.md."""
 
 from ._batch import (
     GRID_SHAPE,

@@ -160,7 +160,7 @@ def test_the_configs_ship_inside_the_package():
     ids = sorted(p.stem for p in (configs / "scenes").glob("*.toml"))
     for scene in ("coho_default", "seabream_default", "three_species", "density_dense"):
         assert scene in ids
-    for sub in ("species", "sites", "rewards"):
+    for sub in ("species", "sites", "rewards/thesis"):
         assert any((configs / sub).glob("*.toml")), sub
 
 

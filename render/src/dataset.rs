@@ -15,7 +15,7 @@
 //! exists is complete, which is how an interrupted render continues.
 
 use crate::render::{FishLabel, Frame};
-use deepfoids_env::io::write_atomic;
+use deepfoids_io::write_atomic;
 use serde::Serialize;
 use serde_json::{Value, json};
 use std::io::Cursor;
@@ -33,6 +33,20 @@ pub enum DatasetError {
     Encode { path: PathBuf, message: String },
     #[error("{path}: {message}")]
     Invalid { path: PathBuf, message: String },
+}
+
+/// `value` as JSON text (compact, or pretty), written atomically to `path`.
+fn write_json(path: &Path, value: &Value, pretty: bool) -> Result<(), DatasetError> {
+    let text = if pretty {
+        serde_json::to_string_pretty(value)
+    } else {
+        serde_json::to_string(value)
+    }
+    .map_err(|e| DatasetError::Encode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    write_atomic(path, text.as_bytes()).map_err(io(path))
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> DatasetError + '_ {
@@ -220,7 +234,7 @@ impl Dataset {
         }
         let mut v = params.clone();
         v["request"] = key.clone();
-        write_atomic(&path, serde_json::to_string_pretty(&v).unwrap().as_bytes()).map_err(io(&path))
+        write_json(&path, &v, true)
     }
 
     /// Write frame `i`: image, mask, YOLO labels, then the frame JSON.
@@ -261,7 +275,7 @@ impl Dataset {
             "fish": fish,
         });
         let p = self.frame_json_path(i);
-        write_atomic(&p, serde_json::to_string(&v).unwrap().as_bytes()).map_err(io(&p))
+        write_json(&p, &v, false)
     }
 
     fn fish_json(&self, f: &FishLabel, frame: &Frame, behaviour_of: &[u16]) -> Value {
@@ -388,10 +402,7 @@ impl Dataset {
                 "categories": categories,
             })
         };
-        let write_json = |name: &str, v: &Value| {
-            let p = self.dir.join(name);
-            write_atomic(&p, serde_json::to_string(v).unwrap().as_bytes()).map_err(io(&p))
-        };
+        let write = |name: &str, v: &Value| write_json(&self.dir.join(name), v, false);
         // One COCO file per split (image and annotation ids kept), and all.
         let mut lists = String::new();
         let mut val_frames = 0;
@@ -421,9 +432,9 @@ impl Dataset {
                 .filter(|a| a["image_id"].as_u64().is_some_and(|i| ids.contains(&i)))
                 .cloned()
                 .collect();
-            write_json(&format!("annotations_{split}.json"), &coco(im, an, split))?;
+            write(&format!("annotations_{split}.json"), &coco(im, an, split))?;
         }
-        write_json("annotations.json", &coco(images, anns, "all"))?;
+        write("annotations.json", &coco(images, anns, "all"))?;
         let p = self.dir.join("counts.csv");
         write_atomic(&p, counts.as_bytes()).map_err(io(&p))?;
         let abs = std::fs::canonicalize(&self.dir).unwrap_or_else(|_| self.dir.clone());

@@ -9,12 +9,16 @@
 //! 3. [`html`]: one self-contained HTML page — the viewer (`viewer/`), the
 //!    recording and three.js (`vendor/three/`, from npm, embedded at build
 //!    time), nothing fetched at view time.
+//! 4. [`clip`]: the top and side views as an animated GIF, for papers and
+//!    slides.
 
+pub mod clip;
 pub mod encode;
 pub mod html;
 pub mod recording;
 pub mod trajectories;
 
+pub use clip::{ClipError, GifView, write_gif};
 pub use html::{PageSize, page};
 pub use recording::{EnvRecorder, Info, Recording, ReplayError, stride};
 pub use trajectories::from_trajectories;

@@ -90,37 +90,7 @@ pub fn from_trajectories(
                 ),
             ));
         }
-        let b = w.behaviour[row.fish] as usize;
-        let behaviour = line.split(',').nth(2).unwrap_or_default();
-        if behaviour != names[b] {
-            return Err(ReplayError::Mismatch {
-                path: path.into(),
-                what: format!(
-                    "line {line_no}: fish {} is `{behaviour}` here but `{}` in scene {} with seed {}: the CSV was written with another scene or seed",
-                    row.fish,
-                    names[b],
-                    env.scene().id,
-                    env.seed()
-                ),
-            });
-        }
-        let bl: f32 = line
-            .rsplit(',')
-            .next()
-            .and_then(|x| x.trim().parse().ok())
-            .unwrap_or(f32::NAN);
-        if (bl - w.bl[row.fish]).abs() > BL_TOLERANCE {
-            return Err(ReplayError::Mismatch {
-                path: path.into(),
-                what: format!(
-                    "line {line_no}: fish {} is {bl} m long here but {:.4} m in scene {} with seed {}: the CSV was written with another scene or seed",
-                    row.fish,
-                    w.bl[row.fish],
-                    env.scene().id,
-                    env.seed()
-                ),
-            });
-        }
+        check_fish(path, line, line_no, row.fish, env, &names)?;
         if row.fish > 0 && row.t != snapshot[0].t {
             return Err(err(
                 line_no,
@@ -191,6 +161,52 @@ pub fn from_trajectories(
         ));
     }
     Ok(rec)
+}
+
+/// The fish on line `line_no` must be of the behaviour and body length that
+/// `env`'s scene and seed give fish `fish`: a CSV written with another scene
+/// or seed is refused.
+fn check_fish(
+    path: &str,
+    line: &str,
+    line_no: usize,
+    fish: usize,
+    env: &Env,
+    names: &[&str],
+) -> Result<(), ReplayError> {
+    let w = env.world();
+    let b = w.behaviour[fish] as usize;
+    let behaviour = line.split(',').nth(2).unwrap_or_default();
+    if behaviour != names[b] {
+        return Err(ReplayError::Mismatch {
+            path: path.into(),
+            what: format!(
+                "line {line_no}: fish {} is `{behaviour}` here but `{}` in scene {} with seed {}: the CSV was written with another scene or seed",
+                fish,
+                names[b],
+                env.scene().id,
+                env.seed()
+            ),
+        });
+    }
+    let bl: f32 = line
+        .rsplit(',')
+        .next()
+        .and_then(|x| x.trim().parse().ok())
+        .unwrap_or(f32::NAN);
+    if (bl - w.bl[fish]).abs() > BL_TOLERANCE {
+        return Err(ReplayError::Mismatch {
+            path: path.into(),
+            what: format!(
+                "line {line_no}: fish {} is {bl} m long here but {:.4} m in scene {} with seed {}: the CSV was written with another scene or seed",
+                fish,
+                w.bl[fish],
+                env.scene().id,
+                env.seed()
+            ),
+        });
+    }
+    Ok(())
 }
 
 fn parse_row(line: &str) -> Result<Row, String> {

@@ -18,6 +18,7 @@ use burn::tensor::activation::softplus;
 use deepfoids_learn::body::{infer_net, small_linear};
 use deepfoids_learn::kernels::dense::DensePack;
 use deepfoids_learn::kernels::infer::InferNet;
+use deepfoids_learn::onnx::{Head, Metadata, export_policy};
 use deepfoids_learn::{ACTIONS, Body, BodyConfig, Grids};
 
 const HALF_LOG_2PI: f32 = 0.918_938_5;
@@ -73,6 +74,20 @@ pub struct Actor {
 }
 
 impl Actor {
+    /// The actor (body and tanh-squashed Gaussian head) as ONNX with
+    /// ML-Agents' interface.
+    pub fn onnx(&self, meta: &Metadata) -> Vec<u8> {
+        export_policy(
+            &self.body,
+            Head::Squashed {
+                mean: &self.mean,
+                log_std: &self.log_std,
+                bounds: self.bounds(),
+            },
+            meta,
+        )
+    }
+
     /// The Gaussian's mean and log-std, both `[B, 3]`, before squashing.
     pub fn forward(&self, grids: &Grids, vector: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
         self.heads(self.body.forward(grids, vector))

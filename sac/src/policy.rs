@@ -9,7 +9,7 @@ use deepfoids_env::VECTOR_OBS;
 use deepfoids_learn::checkpoint::{BehaviourState, RunState, load_json, load_module};
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
-use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::onnx::Metadata;
 use deepfoids_learn::policy::Actor;
 use deepfoids_learn::tensor::{tensor2, tensor4, to_vec};
 use deepfoids_learn::{ACTIONS, Algorithm, Result};
@@ -87,15 +87,7 @@ impl Actor for SacActor {
     }
 
     fn onnx(&self, meta: &Metadata) -> Vec<u8> {
-        export_policy(
-            &self.actor.body,
-            Head::Squashed {
-                mean: &self.actor.mean,
-                log_std: &self.actor.log_std,
-                bounds: self.actor.bounds(),
-            },
-            meta,
-        )
+        self.actor.onnx(meta)
     }
 }
 

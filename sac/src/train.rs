@@ -55,7 +55,7 @@ use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, RunSettings, St
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::{InferNet, TrunkInputs};
 use deepfoids_learn::logger::Scalars;
-use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::onnx::Metadata;
 use deepfoids_learn::tensor::{ForceInit, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, Grids, LearnError, Result};
 use serde::{Deserialize, Serialize};
@@ -670,15 +670,7 @@ impl Learner for SacLearner {
     }
 
     fn actor_onnx(&self, meta: &Metadata) -> Vec<u8> {
-        export_policy(
-            &self.actor.body,
-            Head::Squashed {
-                mean: &self.actor.mean,
-                log_std: &self.actor.log_std,
-                bounds: self.actor.bounds(),
-            },
-            meta,
-        )
+        self.actor.onnx(meta)
     }
 
     fn memory(&self) -> BufferMemory {

@@ -1,13 +1,79 @@
 //! `deepfoids bench env`: agent-decisions per second with random actions,
 //! sensor included, warm-up excluded; and where the time goes.
 
-use super::load_scene;
-use crate::cli::{Algo, BenchEnvArgs, BenchPolicyArgs, BenchTrainArgs};
+use crate::args::{algorithm, parse_backend};
 use anyhow::Result;
+use clap::{Args, Subcommand};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy};
+use deepfoids_experiments::{load_actor, load_scene};
+use deepfoids_learn::Algorithm;
 use deepfoids_learn::{ProgressMode, RunArgs};
+use std::path::PathBuf;
 use std::time::Instant;
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Environment speed: agent-decisions per second with random actions, sensor included
+    Env(BenchEnvArgs),
+    /// Training speed: agent-steps per second end to end, and its split
+    Train(BenchTrainArgs),
+    /// Inference speed of a trained policy: Burn against its ONNX export through tract
+    Policy(BenchPolicyArgs),
+    /// Dataset rendering speed: frames per second with all labels
+    Render(super::render::BenchRenderArgs),
+    /// Counting speed: frames per second of `count` on a video or folder of frames
+    Count(super::count::BenchCountArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchPolicyArgs {
+    /// Run folder of the policy
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+    /// Agents per forward pass
+    #[arg(long, default_value_t = 1000)]
+    pub agents: usize,
+    /// Timed repetitions
+    #[arg(long, default_value_t = 10)]
+    pub reps: usize,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchTrainArgs {
+    /// Scene id or path
+    #[arg(long, default_value = "seabream_default", value_name = "ID|PATH")]
+    pub scene: String,
+    /// Agent decisions to train, per behaviour
+    #[arg(long, default_value_t = 30_000)]
+    pub steps: u64,
+    /// Training algorithm
+    #[arg(long, default_value = "ppo", value_parser = algorithm())]
+    pub algo: Algorithm,
+    /// Compute backend
+    #[arg(long, default_value = "flex", value_parser = parse_backend)]
+    pub backend: deepfoids_learn::Backend,
+    /// PPO's rollout: `ml-agents` or `synchronous` [default: configs/train/ppo.toml's]
+    #[arg(long)]
+    pub rollout: Option<String>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchEnvArgs {
+    /// Scene id or path
+    #[arg(long, default_value = "coho_default", value_name = "ID|PATH")]
+    pub scene: String,
+    /// Simulated seconds to time (after the warm-up)
+    #[arg(long, default_value_t = 20.0)]
+    pub seconds: f64,
+    /// Simulated seconds of warm-up, not timed
+    #[arg(long, default_value_t = 2.0)]
+    pub warmup: f64,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
 
 pub fn env(dirs: &ConfigDirs, args: &BenchEnvArgs) -> Result<()> {
     let scene = load_scene(dirs, &args.scene, Phase::Pretrain)?;
@@ -89,7 +155,7 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
     let rss_before = resident_set_bytes();
     let cpu_before = cpu_seconds();
     let out = match args.algo {
-        Algo::Ppo => {
+        Algorithm::Ppo => {
             let mut config = deepfoids_ppo::PpoConfig::load(dirs)?;
             if let Some(r) = &args.rollout {
                 config.rollout = match r.as_str() {
@@ -102,7 +168,7 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
             }
             deepfoids_ppo::train(config, run)
         }
-        Algo::Sac => deepfoids_sac::train(deepfoids_sac::SacConfig::load(dirs)?, run),
+        Algorithm::Sac => deepfoids_sac::train(deepfoids_sac::SacConfig::load(dirs)?, run),
     };
     let cpu = cpu_seconds().zip(cpu_before).map(|(a, b)| a - b);
     let rss_after = resident_set_bytes();
@@ -113,7 +179,7 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
     let wall = out.wall_seconds.max(1e-9);
     println!(
         "{id}: {fish} fish, {}, {} backend, {} threads: {} agent steps in {:.1} s{}",
-        super::train::algo_name(args.algo),
+        args.algo.as_str(),
         args.backend.as_str(),
         rayon::current_num_threads(),
         out.steps_this_run,
@@ -160,11 +226,11 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
         mb(b.peak),
         b.transitions,
         match args.algo {
-            Algo::Sac => format!(
+            Algorithm::Sac => format!(
                 " ({} bytes each)",
                 deepfoids_sac::replay::BYTES_PER_TRANSITION
             ),
-            Algo::Ppo => format!(
+            Algorithm::Ppo => format!(
                 " (≈ {} bytes each)",
                 deepfoids_learn::frames::FRAME_BYTES + deepfoids_ppo::rollout::STEP_BYTES
             ),
@@ -212,7 +278,7 @@ pub fn policy(args: &BenchPolicyArgs) -> Result<()> {
         .behaviours
         .first()
         .ok_or_else(|| anyhow::anyhow!("the run has no behaviours"))?;
-    let actor = super::load_actor(&dir, &state, b)?;
+    let actor = load_actor(&dir, &state, b)?;
     let onnx_path =
         std::env::temp_dir().join(format!("deepfoids-bench-{}.onnx", std::process::id()));
     let meta = deepfoids_learn::onnx::Metadata {

@@ -123,7 +123,7 @@ pub fn run(args: &CountArgs) -> Result<()> {
     }
     let mut counter = counter(&args.opts)?;
     let _lock = match &args.out {
-        Some(d) => Some(crate::io::lock_dir(d)?),
+        Some(d) => Some(deepfoids_experiments::lock_dir(d)?),
         None => None,
     };
     let out = Outputs {

@@ -1,22 +1,55 @@
 //! `deepfoids eval`: drive a scene with a policy and judge the school.
 
-use super::{load_scene, make_policy};
-use crate::cli::EvalArgs;
-use crate::report::{EvalMeta, RunArgs, evaluate, print_table, write_outputs};
+use crate::args::{PolicyArgs, SceneArgs, rerun};
 use anyhow::Result;
+use clap::Args;
 use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::{ConfigDirs, Env};
+use deepfoids_experiments::evaluate::{EvalMeta, evaluate, print_table, write_outputs};
+use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
 use deepfoids_replay::EnvRecorder;
 use std::path::PathBuf;
 
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
+    #[arg(long, default_value = "foids")]
+    pub policy: String,
+    #[command(flatten)]
+    pub policy_args: PolicyArgs,
+    /// Simulated seconds recorded
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Simulated seconds run before recording (the school settles from its random start)
+    #[arg(long, default_value_t = 0.0)]
+    pub warmup: f64,
+    /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Also write replay.html (see `deepfoids replay`) next to the plots
+    #[arg(long)]
+    pub replay: bool,
+    /// Frames per simulated second stored in replay.html (the viewer interpolates between them)
+    #[arg(long, default_value_t = 5.0, value_name = "FPS")]
+    pub replay_fps: f64,
+}
+
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
-    crate::bounds::seconds("--seconds", args.seconds)?;
-    crate::bounds::warmup("--warmup", args.warmup)?;
-    crate::bounds::at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
+    bounds::seconds("--seconds", args.seconds)?;
+    bounds::warmup("--warmup", args.warmup)?;
+    bounds::at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &args.policy_args)?;
+    let mut policy = make_policy(
+        dirs,
+        &args.policy,
+        sa.seed,
+        &env,
+        &args.policy_args.options(),
+    )?;
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "runs/eval-{}-{}-s{}",
@@ -25,7 +58,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
             sa.seed
         ))
     });
-    let _lock = crate::io::lock_dir(&out)?;
+    let _lock = lock_dir(&out)?;
     let info = if args.replay {
         super::replay::check_recording(&env, args.seconds, args.replay_fps)?;
         Some(super::replay::info(
@@ -65,12 +98,12 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         policy: &name,
         seed: sa.seed,
         phase: sa.phase.as_str(),
-        deterministic: !args.policy_args.stochastic,
+        deterministic: args.policy_args.deterministic,
         warmup: args.warmup,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
-        rerun: RunArgs::new(
+        rerun: rerun(
             sa,
             &args.policy,
             &args.policy_args,

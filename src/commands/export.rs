@@ -2,10 +2,28 @@
 //! interface (see `deepfoids_learn::onnx`). Runs also write one per behaviour
 //! into their `final/` folder.
 
-use crate::cli::ExportArgs;
 use anyhow::{Result, bail};
+use clap::Args;
+use deepfoids_experiments::load_actor;
 use deepfoids_learn::checkpoint::{RunState, policy_dir};
 use deepfoids_learn::onnx::{Metadata, OPSET};
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// Run folder
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+    /// Export this checkpoint step instead of the final policy
+    #[arg(long, value_name = "STEP")]
+    pub checkpoint: Option<u64>,
+    /// Behaviour to export (required when the run has several)
+    #[arg(long, value_name = "NAME")]
+    pub behaviour: Option<String>,
+    /// Output file
+    #[arg(long, default_value = "policy.onnx", value_name = "FILE")]
+    pub out: PathBuf,
+}
 
 pub fn run(args: &ExportArgs) -> Result<()> {
     let dir = policy_dir(&args.run, args.checkpoint)?;
@@ -36,8 +54,8 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         training_step: behaviour.agent_steps,
         run: state.run_id.clone(),
     };
-    let bytes = super::load_actor(&dir, &state, behaviour)?.onnx(&meta);
-    crate::io::write_atomic(&args.out, &bytes)?;
+    let bytes = load_actor(&dir, &state, behaviour)?.onnx(&meta);
+    deepfoids_io::write_atomic(&args.out, &bytes)?;
     println!(
         "wrote {} ({} bytes, ONNX opset {OPSET}): {} policy of {} ({}), step {}",
         args.out.display(),

@@ -36,7 +36,7 @@ pub fn run(args: &ImageStatsArgs) -> Result<()> {
     let a = folder_stats(&args.a, args.threshold)?;
     let b = folder_stats(&args.b, args.threshold)?;
     std::fs::create_dir_all(&args.out)?;
-    let w = |name: &str, bytes: &[u8]| crate::io::write_atomic(args.out.join(name), bytes);
+    let w = |name: &str, bytes: &[u8]| deepfoids_io::write_atomic(args.out.join(name), bytes);
     w("annuli.csv", csv(&a, &b, na, nb).as_bytes())?;
     w("annuli.png", &plot(&a, &b, na, nb)?)?;
     let grey_png =

@@ -1,250 +1,44 @@
-//! `deepfoids pipeline`: the two-step scheme of thesis §4.5.2 — pretrain a
-//! species in its default scene with the pretraining weights and budget, then
-//! transfer-learn from that policy into every scene of the species (the default
-//! included) with the transfer weights, evaluate each, and tabulate. With
-//! `--species all`: pretrain every species, then transfer into every scene,
-//! mixed ones (`three_species`) included, each behaviour from its species'
-//! pretrained policy (`--init-from` with several runs).
-//!
-//! Stages live in `<runs>/<pipeline>/pretrain` (`pretrain-<species>` with
-//! `all`) and `…/transfer-<scene>`; a stage with a final policy is reused and
-//! one with checkpoints is resumed, so an interrupted pipeline continues where
-//! it stopped.
+//! `deepfoids pipeline`: the two-step scheme of thesis §4.5.2 (see
+//! `deepfoids_experiments::pipeline`).
 
-use super::load_scene;
-use super::train::{algo_name, curve_ends, evaluate_run, train_scene};
-use crate::cli::PipelineArgs;
-use crate::io::write_atomic;
-use anyhow::{Context, Result, bail};
-use deepfoids_env::metrics::Summary;
-use deepfoids_env::{ConfigDirs, Phase, Scene};
-use std::path::Path;
+use crate::args::TrainOptionArgs;
+use anyhow::Result;
+use clap::Args;
+use deepfoids_env::ConfigDirs;
+use deepfoids_experiments::pipeline::PipelineOptions;
 
-struct Row {
-    scene: String,
-    phase: &'static str,
-    steps: u64,
-    train_reward: Option<f64>,
-    summary: Summary,
+#[derive(Args, Debug)]
+pub struct PipelineArgs {
+    /// Species to train: its default scene, then every scene with only this
+    /// species; `all`: every species, then every scene (mixed ones included)
+    #[arg(long)]
+    pub species: String,
+    /// Pretraining budget per behaviour (agent decisions) [default: the thesis' budget]
+    #[arg(long)]
+    pub pretrain_steps: Option<u64>,
+    /// Transfer budget per behaviour and scene [default: the thesis' budget]
+    #[arg(long)]
+    pub transfer_steps: Option<u64>,
+    /// Only these target scenes (comma-separated) [default: all of the species, or all]
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<String>,
+    /// Run name [default: pipeline-<algo>-<species>-s<seed>]
+    #[arg(long)]
+    pub run_id: Option<String>,
+    #[command(flatten)]
+    pub opts: TrainOptionArgs,
 }
 
 pub fn run(dirs: &ConfigDirs, args: &PipelineArgs) -> Result<()> {
-    let known = dirs.list("species");
-    let all = args.species == "all";
-    let species: Vec<String> = if all {
-        known.clone()
-    } else if known.iter().any(|s| s == &args.species) {
-        vec![args.species.clone()]
-    } else {
-        bail!(
-            "unknown species `{}`; available: {}, or all",
-            args.species,
-            known.join(", ")
-        );
-    };
-    // Target scenes: every scene (all), or those holding only this species.
-    let fits = |s: &Scene| all || s.species_names() == species;
-    let mut targets: Vec<String> = if args.scenes.is_empty() {
-        dirs.list("scenes")
-            .into_iter()
-            .filter(|id| {
-                Scene::load(dirs, id, Phase::Transfer)
-                    .map(|s| fits(&s))
-                    .unwrap_or(false)
-            })
-            .collect()
-    } else {
-        for id in &args.scenes {
-            let s = load_scene(dirs, id, Phase::Transfer)?;
-            if !fits(&s) {
-                bail!(
-                    "scene {id} holds {}, not only {}",
-                    s.species_names().join(", "),
-                    args.species
-                );
-            }
-        }
-        args.scenes.clone()
-    };
-    // The default scenes first, as the thesis does.
-    let defaults: Vec<String> = species.iter().map(|s| format!("{s}_default")).collect();
-    targets.sort_by_key(|id| (!defaults.contains(id), id.clone()));
-    let opts = &args.opts;
-    let id = args.run_id.clone().unwrap_or_else(|| {
-        format!(
-            "pipeline-{}-{}-s{}",
-            algo_name(opts.algo),
-            args.species,
-            opts.seed
-        )
-    });
-    for (flag, steps) in [
-        ("--pretrain-steps", args.pretrain_steps),
-        ("--transfer-steps", args.transfer_steps),
-    ] {
-        if let Some(s) = steps {
-            crate::bounds::train_steps(flag, s)?;
-        }
-    }
-    let root = opts.runs_dir.join(&id);
-    // One process per pipeline folder for the life of this one (issue 13
-    // item 2); each stage's run folder is locked as well while it trains.
-    let _lock = crate::io::lock_dir(&root)?;
-    std::fs::create_dir_all(&root)?;
-    eprintln!(
-        "pipeline {id}: pretrain in {}, then transfer into {}",
-        defaults.join(", "),
-        targets.join(", ")
-    );
-
-    let mut rows = Vec::new();
-    let mut pretrained: Vec<(String, std::path::PathBuf)> = Vec::new();
-    for s in &species {
-        let stage_name = if all {
-            format!("pretrain-{s}")
-        } else {
-            "pretrain".to_string()
-        };
-        let dir = root.join(&stage_name);
-        let scene = load_scene(dirs, &format!("{s}_default"), Phase::Pretrain)?;
-        rows.push(stage(
-            dirs,
-            scene,
-            &dir,
-            &format!("{id}/{stage_name}"),
-            args.pretrain_steps,
-            &[],
-            args,
-        )?);
-        pretrained.push((s.clone(), dir));
-    }
-    for target in &targets {
-        let scene = load_scene(dirs, target, Phase::Transfer)?;
-        // Each species of the scene from its own pretrained policy.
-        let init: Vec<std::path::PathBuf> = scene
-            .species_names()
-            .iter()
-            .map(|sp| {
-                pretrained
-                    .iter()
-                    .find(|(p, _)| p == sp)
-                    .map(|(_, d)| d.clone())
-                    .ok_or_else(|| {
-                        anyhow::anyhow!(
-                            "scene {target} holds {sp}, which this pipeline does not pretrain"
-                        )
-                    })
-            })
-            .collect::<Result<_>>()?;
-        let dir = root.join(format!("transfer-{target}"));
-        rows.push(stage(
-            dirs,
-            scene,
-            &dir,
-            &format!("{id}/transfer-{target}"),
-            args.transfer_steps,
-            &init,
-            args,
-        )?);
-    }
-
-    let mut md = String::from(
-        "| scene | phase | agent steps | train reward/decision (end) | eval reward/decision | P | M | state | boundary coll./fish-h | neighbour coll./fish-h |\n|---|---|---|---|---|---|---|---|---|---|\n",
-    );
-    let mut csv = String::from(
-        "scene,phase,agent_steps,train_reward_end,eval_reward,p,m,state,boundary_per_fish_hour,neighbour_per_fish_hour\n",
-    );
-    for r in &rows {
-        let s = &r.summary;
-        let train = r
-            .train_reward
-            .map_or("–".to_string(), |x| format!("{x:.3}"));
-        md.push_str(&format!(
-            "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {} | {:.1} | {:.1} |\n",
-            r.scene,
-            r.phase,
-            r.steps,
-            train,
-            s.reward_per_decision,
-            s.p_mean,
-            s.m_mean,
-            s.dominant_state.as_str(),
-            s.boundary_collisions_per_fish_hour,
-            s.neighbour_collisions_per_fish_hour
-        ));
-        csv.push_str(&format!(
-            "{},{},{},{},{:.5},{:.5},{:.5},{},{:.3},{:.3}\n",
-            r.scene,
-            r.phase,
-            r.steps,
-            r.train_reward.map_or(String::new(), |x| format!("{x:.5}")),
-            s.reward_per_decision,
-            s.p_mean,
-            s.m_mean,
-            s.dominant_state.as_str(),
-            s.boundary_collisions_per_fish_hour,
-            s.neighbour_collisions_per_fish_hour
-        ));
-    }
-    write_atomic(root.join("summary.md"), md.as_bytes())?;
-    write_atomic(root.join("summary.csv"), csv.as_bytes())?;
-    println!("\n{md}");
-    println!("wrote {}/summary.md and summary.csv", root.display());
-    Ok(())
-}
-
-/// One stage: reuse a finished run, resume an interrupted one, or train afresh.
-fn stage(
-    dirs: &ConfigDirs,
-    scene: Scene,
-    dir: &Path,
-    run_id: &str,
-    steps: Option<u64>,
-    init_from: &[std::path::PathBuf],
-    args: &PipelineArgs,
-) -> Result<Row> {
-    let phase = scene.phase;
-    let scene_id = scene.id.clone();
-    let _lock = crate::io::lock_dir(dir)?;
-    let finished = dir.join("final").join("state.json").is_file();
-    let (summary, train_reward, agent_steps) = if finished {
-        eprintln!("{run_id}: finished before, reusing it");
-        let state = deepfoids_learn::checkpoint::RunState::load(&dir.join("final"))?;
-        let summary = match read_summary(&dir.join("eval").join("summary.json")) {
-            Some(s) => s,
-            None => evaluate_run(scene, dir, &args.opts)?,
-        };
-        (summary, None, state.agent_steps)
-    } else {
-        let resume = !deepfoids_learn::checkpoint::checkpoints(dir).is_empty();
-        if !resume && dir.exists() {
-            // Stopped before its first checkpoint: start it again from nothing
-            // (its logs would otherwise hold a second copy of the early steps).
-            std::fs::remove_dir_all(dir)
-                .with_context(|| format!("cannot remove {}", dir.display()))?;
-        }
-        let mut opts = args.opts.clone();
-        if opts.eval_seconds <= 0.0 {
-            opts.eval_seconds = 60.0;
-        }
-        let t = train_scene(dirs, scene, dir, run_id, steps, init_from, resume, &opts)?;
-        let end = curve_ends(&t.outcome.curve, 3).map(|x| x.1);
-        (t.summary.expect("evaluated"), end, t.outcome.agent_steps)
-    };
-    Ok(Row {
-        scene: scene_id,
-        phase: phase.as_str(),
-        steps: agent_steps,
-        train_reward,
-        summary,
-    })
-}
-
-fn read_summary(path: &Path) -> Option<Summary> {
-    #[derive(serde::Deserialize)]
-    struct File {
-        summary: Summary,
-    }
-    let text = std::fs::read_to_string(path).ok()?;
-    serde_json::from_str::<File>(&text).ok().map(|f| f.summary)
+    deepfoids_experiments::pipeline::run(
+        dirs,
+        &PipelineOptions {
+            species: args.species.clone(),
+            pretrain_steps: args.pretrain_steps,
+            transfer_steps: args.transfer_steps,
+            scenes: args.scenes.clone(),
+            run_id: args.run_id.clone(),
+            opts: args.opts.options(),
+        },
+    )
 }

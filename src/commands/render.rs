@@ -14,14 +14,14 @@
 //! is re-simulated from its start (the simulation is deterministic for a
 //! seed), and only its missing frames are rendered.
 
-use super::{load_scene, make_policy};
-use crate::bounds::{count_within, positive_at_most};
-use crate::cli::{PolicyArgs, SceneArgs};
+use crate::args::{PolicyArgs, SceneArgs};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use deepfoids_env::limits::{MAX_FPS, MAX_FRAMES, MAX_IMAGE_PX};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
+use deepfoids_experiments::bounds::{self, count_within, positive_at_most};
+use deepfoids_experiments::{load_scene, lock_dir, make_policy};
 use deepfoids_render::dataset::ImageFormat;
 use deepfoids_render::setup::{TailPhases, place_camera, poses, species_meshes};
 use deepfoids_render::{
@@ -147,7 +147,7 @@ impl Clip {
         pa: &PolicyArgs,
     ) -> Result<Self> {
         let env = Env::new(scene, seed);
-        let policy = make_policy(dirs, policy, seed, &env, pa)?;
+        let policy = make_policy(dirs, policy, seed, &env, &pa.options())?;
         let actions = action_buffers(&env);
         let phases = TailPhases::new(env.world().len(), seed);
         Ok(Self {
@@ -185,7 +185,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
     count_within("--clip-frames", args.clip_frames as u64, frames, "frames")?;
     image_size(args.width, args.height)?;
     positive_at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
-    crate::bounds::warmup("--warmup", args.warmup)?;
+    bounds::warmup("--warmup", args.warmup)?;
     if !(0.0..=1.0).contains(&args.min_contrast) {
         bail!(
             "--min-contrast must be in [0, 1] (a share of the 8-bit range), got {}",
@@ -218,7 +218,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
             }
         })
         .collect::<Result<_>>()?;
-    let _lock = crate::io::lock_dir(&args.out)?;
+    let _lock = lock_dir(&args.out)?;
     let dataset = Dataset::new(
         &args.out,
         args.format,
@@ -236,7 +236,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         "randomize": args.randomize, "clip_frames": clip_frames, "warmup": args.warmup,
         "seed": seed, "format": args.format.ext(), "phase": args.scene.phase.as_str(),
         "val_fraction": args.val_fraction, "allow_empty": args.allow_empty, "water_tries": args.water_tries,
-        "stochastic": args.policy_args.stochastic, "checkpoint": args.policy_args.checkpoint,
+        "stochastic": !args.policy_args.deterministic, "checkpoint": args.policy_args.checkpoint,
     });
     let optics: Vec<_> = clips
         .iter()
@@ -421,6 +421,7 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
     let clip = ClipParams::from_scene(&scene, 0, args.seed, args.camera);
     let pa = PolicyArgs {
         checkpoint: None,
+        deterministic: false,
         stochastic: false,
     };
     let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa)?;

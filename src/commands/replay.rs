@@ -12,17 +12,18 @@
 //!   (seeded runs are deterministic), and every tick's P and M must equal its
 //!   `metrics.csv` — a changed policy or code is an error, not a different film.
 
-use super::{load_scene, make_policy};
-use crate::cli::{PolicyArgs, SceneArgs, parse_phase};
-use crate::clip::{GifView, write_gif};
-use crate::io::write_atomic;
-use crate::report::{Evaluation, RunArgs, evaluate};
+use crate::args::{PolicyArgs, SceneArgs, from_rerun, parse_phase, rerun};
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::memory;
 use deepfoids_env::{ConfigDirs, Env, Phase};
+use deepfoids_experiments::evaluate::{Evaluation, RunArgs, evaluate};
+use deepfoids_experiments::{bounds, load_scene, make_policy};
+use deepfoids_io::write_atomic;
 use deepfoids_replay::{EnvRecorder, Info, PageSize, Recording, from_trajectories, page};
+use deepfoids_replay::{GifView, write_gif};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -59,7 +60,7 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "GIF")]
     pub gif: Option<PathBuf>,
     /// Views in the GIF: top, side, or both side by side
-    #[arg(long, value_enum, default_value = "both")]
+    #[arg(long, default_value = "both", value_parser = gif_view())]
     pub gif_view: GifView,
     /// Width of each GIF view in pixels (the cage fills it)
     #[arg(long, default_value_t = 360, value_name = "PX")]
@@ -69,8 +70,13 @@ pub struct ReplayArgs {
     pub gif_speed: f64,
 }
 
+/// `--gif-view`: top, side or both, listed in `--help` and in the error.
+fn gif_view() -> impl TypedValueParser<Value = GifView> {
+    PossibleValuesParser::new(GifView::ALL.map(|(name, _)| name)).try_map(|s| s.parse::<GifView>())
+}
+
 pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
-    crate::bounds::at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
+    bounds::at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
     let rec = match &args.from {
         Some(dir) => from_folder(dirs, dir, args)?,
         None => {
@@ -79,13 +85,13 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
                     "give --scene (and --policy) to simulate a school, or --from <simulate or eval folder> to replay one"
                 );
             };
-            crate::bounds::seconds("--seconds", args.seconds)?;
+            bounds::seconds("--seconds", args.seconds)?;
             let sa = SceneArgs {
                 scene: scene.clone(),
                 seed: args.seed.unwrap_or(0),
                 phase: args.phase,
             };
-            let run = RunArgs::new(&sa, &args.policy, &args.policy_args, 0.0, args.seconds);
+            let run = rerun(&sa, &args.policy, &args.policy_args, 0.0, args.seconds);
             simulate(dirs, &run, args.fps, "simulated by deepfoids replay")?.0
         }
     };
@@ -197,11 +203,11 @@ fn simulate(
     fps: f64,
     source: &str,
 ) -> Result<(Recording, Evaluation)> {
-    let (sa, opts) = run.options()?;
+    let (sa, opts) = from_rerun(run)?;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
     check_recording(&env, run.seconds, fps)?;
-    let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts)?;
+    let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts.options())?;
     let info = info(&env, &policy.name(), source, vec![]);
     let mut recorder = None;
     let mut record_error = None;
@@ -265,7 +271,7 @@ fn from_simulate(
                 meta_path.display()
             );
         }
-        (run.options()?.0, run.policy)
+        (from_rerun(&run)?.0, run.policy)
     } else {
         let Some(scene) = &args.scene else {
             bail!(

@@ -1,15 +1,32 @@
 //! `deepfoids sensor-view`: what one fish sees — its three stacked grid-sensor
 //! frames (oldest left), proximity as brightness and object type as colour.
 
-use super::load_scene;
-use crate::cli::SensorViewArgs;
-use crate::plot::{FONT, pe, save_png};
+use crate::args::SceneArgs;
 use anyhow::{Result, bail};
+use clap::Args;
 use deepfoids_env::limits::MAX_TICKS;
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{Chase, ConfigDirs, Env, Policy, RandomPolicy};
+use deepfoids_experiments::plot::{FONT, pe, save_png};
+use deepfoids_experiments::{bounds, load_scene};
 use deepfoids_sensors::{AZ_CELLS, CELLS, EL_CELLS, FRAME_LEN, GridSensor, STACK, STACKED_LEN};
 use plotters::prelude::*;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct SensorViewArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Index of the fish to look through (0-based)
+    #[arg(long, default_value_t = 0)]
+    pub fish: usize,
+    /// Ticks to simulate (random actions) before looking
+    #[arg(long, default_value_t = 10)]
+    pub step: u64,
+    /// Output PNG
+    #[arg(long, default_value = "view.png", value_name = "PNG")]
+    pub out: PathBuf,
+}
 
 /// Colour of each seen type at full proximity, in channel order 1..=5.
 pub const TYPE_COLOURS: [(&str, RGBColor); 5] = [
@@ -21,7 +38,7 @@ pub const TYPE_COLOURS: [(&str, RGBColor); 5] = [
 ];
 
 pub fn run(dirs: &ConfigDirs, args: &SensorViewArgs) -> Result<()> {
-    crate::bounds::count_within("--step", args.step, [0, MAX_TICKS], "ticks")?;
+    bounds::count_within("--step", args.step, [0, MAX_TICKS], "ticks")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);

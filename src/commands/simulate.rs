@@ -2,16 +2,33 @@
 //! (one row per fish per decision of the fastest species) and `simulate.json`
 //! (the options that made it, for `replay --from`), and print a summary.
 
-use super::{load_scene, make_policy};
-use crate::cli::SimulateArgs;
-use crate::io::{AtomicFile, write_atomic};
-use crate::report::RunArgs;
+use crate::args::{PolicyArgs, SceneArgs, rerun};
 use anyhow::{Context, Result};
+use clap::Args;
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, N_TERMS, StepOutput, TERM_NAMES};
+use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
+use deepfoids_io::{AtomicFile, write_atomic};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Who acts: `random`, `foids`, `foids_table1` (Table 1 as published), `boids`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
+    #[arg(long, default_value = "random")]
+    pub policy: String,
+    #[command(flatten)]
+    pub policy_args: PolicyArgs,
+    /// Simulated seconds
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// Output folder [default: runs/simulate-<scene>-s<seed>]
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
 
 /// Running sums per behaviour.
 #[derive(Clone, Debug, Default)]
@@ -44,16 +61,22 @@ impl Tally {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
-    crate::bounds::seconds("--seconds", args.seconds)?;
+    bounds::seconds("--seconds", args.seconds)?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let out_dir = args
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
-    let _lock = crate::io::lock_dir(&out_dir)?;
+    let _lock = lock_dir(&out_dir)?;
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &args.policy_args)?;
+    let mut policy = make_policy(
+        dirs,
+        &args.policy,
+        sa.seed,
+        &env,
+        &args.policy_args.options(),
+    )?;
     let mut actions = action_buffers(&env);
     let ticks = (args.seconds / env.tick_seconds()).round().max(1.0) as u64;
     let fastest = env
@@ -115,7 +138,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     csv.commit()
         .with_context(|| format!("writing {}", csv_path.display()))?;
     // What `replay --from` needs to put the CSV back into its cage.
-    let rerun = RunArgs::new(sa, &args.policy, &args.policy_args, 0.0, args.seconds);
+    let rerun = rerun(sa, &args.policy, &args.policy_args, 0.0, args.seconds);
     write_atomic(
         out_dir.join("simulate.json"),
         serde_json::to_string_pretty(&rerun)?.as_bytes(),

@@ -1,44 +1,65 @@
 //! `deepfoids train`: train one policy per behaviour of a scene, then evaluate it.
 
-use super::load_scene;
-use crate::cli::{Algo, TrainCmd, TrainOptions};
-use crate::report::{EvalMeta, evaluate, print_table, write_outputs};
-use anyhow::{Context, Result, bail};
-use deepfoids_env::metrics::Summary;
-use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
-use deepfoids_learn::driver::open_sources;
-use deepfoids_learn::{ProgressMode, RunArgs, TrainOutcome};
-use deepfoids_ppo::PpoConfig;
-use deepfoids_sac::SacConfig;
-use std::path::{Path, PathBuf};
+use crate::args::{TrainOptionArgs, parse_phase};
+use anyhow::Result;
+use clap::Args;
+use deepfoids_env::{ConfigDirs, Phase};
+use deepfoids_experiments::training::{Trained, check_init_from, prepare_run_dir, train_scene};
+use deepfoids_experiments::{bounds, load_scene, lock_dir, pretrained};
+use std::path::PathBuf;
 
-/// A finished training command.
-pub struct Trained {
-    pub run_dir: PathBuf,
-    pub outcome: TrainOutcome,
-    pub summary: Option<Summary>,
+#[derive(Args, Debug, Clone)]
+pub struct TrainArgs {
+    /// Scene id or path
+    #[arg(long, value_name = "ID|PATH")]
+    pub scene: String,
+    /// Reward weights and budget of this phase
+    #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
+    pub phase: Phase,
+    /// Start from the weights of these runs (transfer learning; comma-separated
+    /// or repeated, e.g. one per species): each behaviour takes the weights of
+    /// a behaviour of the same name, else of the same species; steps start at 0;
+    /// `pretrained:<species>` names a shipped policy
+    #[arg(long, value_name = "RUN", value_delimiter = ',', value_parser = pretrained::parse_run)]
+    pub init_from: Vec<PathBuf>,
+    /// Agent decisions to train, per behaviour (each counts its own, as ML-Agents'
+    /// max_steps) [default: the thesis' budget for its species and phase]
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Run name [default: <algo>-<scene>-<phase>-s<seed>]
+    #[arg(long)]
+    pub run_id: Option<String>,
+    /// Continue the run from its last checkpoint
+    #[arg(long)]
+    pub resume: bool,
+    /// Replace an existing run folder
+    #[arg(long)]
+    pub force: bool,
+    #[command(flatten)]
+    pub opts: TrainOptionArgs,
 }
 
-pub fn run(dirs: &ConfigDirs, args: &TrainCmd) -> Result<Trained> {
+pub fn run(dirs: &ConfigDirs, args: &TrainArgs) -> Result<Trained> {
+    let opts = args.opts.options();
     let scene = load_scene(dirs, &args.scene, args.phase)?;
     let run_id = args.run_id.clone().unwrap_or_else(|| {
         format!(
             "{}-{}-{}-s{}",
-            algo_name(args.opts.algo),
+            opts.algo.as_str(),
             scene.id,
             args.phase.as_str(),
-            args.opts.seed
+            opts.seed
         )
     });
-    let run_dir = args.opts.runs_dir.join(&run_id);
+    let run_dir = opts.runs_dir.join(&run_id);
     if let Some(steps) = args.steps {
-        crate::bounds::train_steps("--steps", steps)?;
+        bounds::train_steps("--steps", steps)?;
     }
     if !args.resume {
-        check_init_from(dirs, &scene, &args.init_from, &args.opts)?;
+        check_init_from(dirs, &scene, &args.init_from, &opts)?;
     }
     // One process per run folder, for the life of this one (issue 13 item 2).
-    let _lock = crate::io::lock_dir(&run_dir).map_err(|e| {
+    let _lock = lock_dir(&run_dir).map_err(|e| {
         if args.force {
             e.context("--force does not replace a run that is in use")
         } else {
@@ -54,251 +75,6 @@ pub fn run(dirs: &ConfigDirs, args: &TrainCmd) -> Result<Trained> {
         args.steps,
         &args.init_from,
         args.resume,
-        &args.opts,
+        &opts,
     )
-}
-
-pub fn algo_name(a: Algo) -> &'static str {
-    match a {
-        Algo::Ppo => "ppo",
-        Algo::Sac => "sac",
-    }
-}
-
-/// The runs of `--init-from` must hold policies of this algorithm and
-/// architecture with a source for every behaviour of `scene`: checked before
-/// the run folder is created, so a wrong one leaves no stub behind.
-pub fn check_init_from(
-    dirs: &ConfigDirs,
-    scene: &Scene,
-    init_from: &[PathBuf],
-    opts: &TrainOptions,
-) -> Result<()> {
-    if init_from.is_empty() {
-        return Ok(());
-    }
-    match opts.algo {
-        Algo::Ppo => open_sources(
-            &deepfoids_ppo::Ppo {
-                config: PpoConfig::load(dirs)?,
-            },
-            init_from,
-            scene,
-        )?,
-        Algo::Sac => open_sources(
-            &deepfoids_sac::Sac {
-                config: SacConfig::load(dirs)?,
-            },
-            init_from,
-            scene,
-        )?,
-    };
-    Ok(())
-}
-
-/// Refuse to overwrite a run by accident (ML-Agents' behaviour). The caller
-/// holds the folder's lock, so `--force` never removes a run in use.
-pub fn prepare_run_dir(run_dir: &Path, resume: bool, force: bool) -> Result<()> {
-    if resume {
-        if !run_dir.is_dir() {
-            bail!("--resume: there is no run folder {}", run_dir.display());
-        }
-    } else if run_dir.exists() {
-        if force {
-            std::fs::remove_dir_all(run_dir)
-                .with_context(|| format!("cannot remove {}", run_dir.display()))?;
-        } else {
-            bail!(
-                "the run folder {} exists; use --resume to continue it, --force to replace it, or another --run-id",
-                run_dir.display()
-            );
-        }
-    }
-    Ok(())
-}
-
-/// Train `scene` into `run_dir`, write the resolved configuration, and evaluate the result.
-#[allow(clippy::too_many_arguments)]
-pub fn train_scene(
-    dirs: &ConfigDirs,
-    scene: Scene,
-    run_dir: &Path,
-    run_id: &str,
-    steps: Option<u64>,
-    init_from: &[PathBuf],
-    resume: bool,
-    opts: &TrainOptions,
-) -> Result<Trained> {
-    let (mut ppo, mut sac) = match opts.algo {
-        Algo::Ppo => (Some(PpoConfig::load(dirs)?), None),
-        Algo::Sac => (None, Some(SacConfig::load(dirs)?)),
-    };
-    for (species, b) in &opts.budgets {
-        if let Some(c) = ppo.as_mut() {
-            c.budgets.insert(species.clone(), *b);
-        }
-        if let Some(c) = sac.as_mut() {
-            c.budgets.insert(species.clone(), *b);
-        }
-    }
-    // Each behaviour's own budget (ML-Agents' max_steps is per behaviour).
-    let mut budgets = toml::Table::new();
-    for b in &scene.behaviours {
-        let species = &b.species.name;
-        let budget = steps.unwrap_or_else(|| match (&ppo, &sac) {
-            (Some(c), _) => c.budget(species, scene.phase),
-            (_, Some(c)) => c.budget(species, scene.phase),
-            _ => unreachable!("one config is loaded"),
-        });
-        budgets.insert(b.name.clone(), (budget as i64).into());
-    }
-    if !resume {
-        check_init_from(dirs, &scene, init_from, opts)?;
-    }
-    std::fs::create_dir_all(run_dir)
-        .with_context(|| format!("cannot create {}", run_dir.display()))?;
-    if !resume {
-        let mut resolved = toml::Table::new();
-        let mut run = toml::Table::new();
-        run.insert("run_id".into(), run_id.into());
-        run.insert("algo".into(), algo_name(opts.algo).into());
-        run.insert("scene".into(), scene.id.clone().into());
-        run.insert("phase".into(), scene.phase.as_str().into());
-        run.insert("seed".into(), (opts.seed as i64).into());
-        run.insert("steps".into(), budgets.clone().into());
-        run.insert("backend".into(), opts.backend.as_str().into());
-        if !init_from.is_empty() {
-            let runs: Vec<toml::Value> = init_from
-                .iter()
-                .map(|i| i.display().to_string().into())
-                .collect();
-            run.insert("init_from".into(), runs.into());
-        }
-        resolved.insert("run".into(), run.into());
-        if let Some(c) = &ppo {
-            resolved.insert("ppo".into(), toml::Value::try_from(c)?);
-        }
-        if let Some(c) = &sac {
-            resolved.insert("sac".into(), toml::Value::try_from(c)?);
-        }
-        resolved.insert("scene".into(), toml::Value::try_from(&scene)?);
-        crate::io::write_atomic(
-            run_dir.join("config.toml"),
-            toml::to_string_pretty(&resolved)?.as_bytes(),
-        )?;
-    }
-    eprintln!(
-        "training {} on {} ({} phase) into {}",
-        algo_name(opts.algo),
-        scene.id,
-        scene.phase.as_str(),
-        run_dir.display()
-    );
-    let args = RunArgs {
-        scene: scene.clone(),
-        run_dir: run_dir.to_path_buf(),
-        run_id: run_id.to_string(),
-        seed: opts.seed,
-        steps,
-        resume,
-        init_from: init_from.to_vec(),
-        backend: opts.backend,
-        progress: if opts.quiet {
-            ProgressMode::Quiet
-        } else {
-            ProgressMode::Auto
-        },
-        progress_sink: None,
-        save: true,
-    };
-    let outcome = match (ppo, sac) {
-        (Some(config), _) => deepfoids_ppo::train(config, args)?,
-        (_, Some(config)) => deepfoids_sac::train(config, args)?,
-        _ => unreachable!("one config is loaded"),
-    };
-    print_training(&outcome);
-    let summary = if opts.eval_seconds > 0.0 {
-        Some(evaluate_run(scene, run_dir, opts)?)
-    } else {
-        None
-    };
-    Ok(Trained {
-        run_dir: run_dir.to_path_buf(),
-        outcome,
-        summary,
-    })
-}
-
-/// The mean of the first and of the last `k` points of a curve.
-pub fn curve_ends(curve: &[(u64, f64)], k: usize) -> Option<(f64, f64)> {
-    if curve.is_empty() {
-        return None;
-    }
-    let k = k.min(curve.len().div_ceil(2)).max(1);
-    let mean = |s: &[(u64, f64)]| s.iter().map(|x| x.1).sum::<f64>() / s.len() as f64;
-    Some((mean(&curve[..k]), mean(&curve[curve.len() - k..])))
-}
-
-fn print_training(o: &TrainOutcome) {
-    let t = &o.timing;
-    let total = (t.env + t.inference + t.update).as_secs_f64().max(1e-9);
-    println!(
-        "trained {} agent steps in {:.0} s ({:.0} agent-steps/s): environment {:.0} %, inference {:.0} %, updates {:.0} %",
-        o.steps_this_run,
-        o.wall_seconds,
-        o.steps_this_run as f64 / o.wall_seconds.max(1e-9),
-        100.0 * t.env.as_secs_f64() / total,
-        100.0 * t.inference.as_secs_f64() / total,
-        100.0 * t.update.as_secs_f64() / total
-    );
-    if let Some((a, b)) = curve_ends(&o.curve, 3) {
-        println!(
-            "learning curve (mean reward per decision): start {a:.3} → end {b:.3} over {} log points",
-            o.curve.len()
-        );
-    }
-    if let Some((a, b)) = curve_ends(&o.episode_curve, 3) {
-        println!("cumulative reward per episode: start {a:.1} → end {b:.1}");
-    }
-    if let Some(f) = &o.final_dir {
-        println!(
-            "final policy: {} (weights, state.json, <behaviour>.onnx)",
-            f.display()
-        );
-    }
-}
-
-/// Evaluate a run's final policy deterministically; writes `<run>/eval/`.
-pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
-    let env_seed = opts.seed.wrapping_add(1_000_003);
-    let rerun = crate::report::RunArgs {
-        scene: scene.source.display().to_string(),
-        phase: scene.phase.as_str().to_string(),
-        seed: env_seed,
-        policy: run_dir.display().to_string(),
-        checkpoint: None,
-        stochastic: false,
-        warmup: 0.0,
-        seconds: opts.eval_seconds,
-    };
-    let mut env = Env::new(scene, env_seed);
-    let mut policy = super::load_trained(run_dir, None, &env, true, opts.seed)?;
-    let eval = evaluate(&mut env, &mut policy, 0.0, opts.eval_seconds, |_, _, _| {})?;
-    let scene_id = env.scene().id.clone();
-    let name = policy.name();
-    let meta = EvalMeta {
-        scene: &scene_id,
-        policy: &name,
-        seed: opts.seed,
-        phase: env.scene().phase.as_str(),
-        deterministic: true,
-        warmup: 0.0,
-        seconds: eval.seconds,
-        wall_seconds: eval.wall_seconds,
-        ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
-        rerun,
-    };
-    let summary = write_outputs(&run_dir.join("eval"), &env, &eval, &meta)?;
-    print_table(&meta, &summary);
-    Ok(summary)
 }

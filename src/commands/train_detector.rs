@@ -70,7 +70,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
     cfg.count.view_fov_deg = args.view_fov;
     cfg.count.view_size = args.view_size;
     cfg.count.validate()?;
-    let _lock = crate::io::lock_dir(&args.out)?;
+    let _lock = deepfoids_experiments::lock_dir(&args.out)?;
     let t = Instant::now();
     let data = load_data(&args.data, &cfg.count, cfg.max_frames)?;
     println!(
@@ -101,7 +101,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         }
         let p = args.out.join("evaluation.json");
         std::fs::create_dir_all(&args.out)?;
-        crate::io::write_atomic(&p, serde_json::to_string_pretty(&ev)?.as_bytes())?;
+        deepfoids_io::write_atomic(&p, serde_json::to_string_pretty(&ev)?.as_bytes())?;
         return Ok(());
     }
     let quiet = args.quiet;

@@ -366,6 +366,11 @@ impl Policy for Foids {
         "foids".into()
     }
 
+    /// The model steers once per decision (SPEC §4's `per_decision` reading).
+    fn action_timing(&self) -> Option<crate::config::ActionTiming> {
+        Some(crate::config::ActionTiming::PerDecision)
+    }
+
     fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
         let w: &World = env.world();
         let n = w.len();

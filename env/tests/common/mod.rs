@@ -18,16 +18,26 @@ pub fn configs_with(name: &str, file: &str, edit: impl FnOnce(String) -> String)
     ));
     let _ = std::fs::remove_dir_all(&root);
     for sub in ["species", "sites", "scenes", "rewards", "baselines"] {
-        std::fs::create_dir_all(root.join(sub)).unwrap();
-        for e in std::fs::read_dir(dirs().root.join(sub)).unwrap() {
-            let p = e.unwrap().path();
-            std::fs::copy(&p, root.join(sub).join(p.file_name().unwrap())).unwrap();
-        }
+        copy_dir(&dirs().root.join(sub), &root.join(sub));
     }
     let path = root.join(file);
     let text = std::fs::read_to_string(&path).unwrap();
     std::fs::write(&path, edit(text)).unwrap();
     root
+}
+
+/// Copy folder `from` into `to`, sub-folders (the reward profiles) included.
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let dest = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &dest);
+        } else {
+            std::fs::copy(&p, dest).unwrap();
+        }
+    }
 }
 
 /// The error of loading `scene` from the configs at `root`.

@@ -18,68 +18,11 @@
 //! Bias gradients are column sums of the `dz`s.
 
 use super::geometry::*;
+pub use super::grids::GridsRef;
 use super::sparse::{self, Nonzero, Spans, nonzeros, transpose};
 use super::{SUB, TASK, add_bias, leaky_backward, leaky_inplace, sgemm, sum_rows};
-use crate::frames::FRAME_BYTES;
-use deepfoids_sensors::{AZ_CELLS, CELLS, CHANNELS, STACK, STACKED_LEN};
+use deepfoids_sensors::{AZ_CELLS, STACKED_LEN};
 use rayon::prelude::*;
-
-/// A batch of stacked grids as the kernels read them.
-#[derive(Clone, Copy, Debug)]
-pub enum GridsRef<'a> {
-    /// `[n, 18, 20, 34]` floats, as the environment hands them out.
-    Dense(&'a [f32]),
-    /// `n` stacks of 3 quantised frames ([`crate::frames`]), `STACK · FRAME_BYTES` bytes each.
-    Compact(&'a [u8]),
-}
-
-impl GridsRef<'_> {
-    /// Observations in the batch.
-    pub fn len(&self) -> usize {
-        match self {
-            GridsRef::Dense(x) => x.len() / STACKED_LEN,
-            GridsRef::Compact(x) => x.len() / (STACK * FRAME_BYTES),
-        }
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// Write sample `s` into `xp` `[18, 20, 36]` with the padding columns zero.
-    pub fn expand(&self, s: usize, xp: &mut [f32]) {
-        debug_assert_eq!(xp.len(), PADDED_LEN);
-        match self {
-            GridsRef::Dense(x) => {
-                let x = &x[s * STACKED_LEN..(s + 1) * STACKED_LEN];
-                for (row_in, row_out) in x.chunks_exact(AZ_CELLS).zip(xp.chunks_exact_mut(W_PAD)) {
-                    row_out[..AZ_PAD].fill(0.0);
-                    row_out[AZ_PAD..AZ_PAD + AZ_CELLS].copy_from_slice(row_in);
-                    row_out[AZ_PAD + AZ_CELLS..].fill(0.0);
-                }
-            }
-            GridsRef::Compact(bytes) => {
-                let stack = &bytes[s * STACK * FRAME_BYTES..(s + 1) * STACK * FRAME_BYTES];
-                xp.fill(0.0);
-                for (f, frame) in stack.chunks_exact(FRAME_BYTES).enumerate() {
-                    let (prox, kind) = frame.split_at(CELLS);
-                    for cell in 0..CELLS {
-                        let k = kind[cell] as usize;
-                        if k == 0 && prox[cell] == 0 {
-                            continue;
-                        }
-                        let (h, w) = (cell / AZ_CELLS, cell % AZ_CELLS + AZ_PAD);
-                        let at = |c: usize| (c * H_IN + h) * W_PAD + w;
-                        xp[at(f * CHANNELS)] = prox[cell] as f32 * (1.0 / 255.0);
-                        if (1..CHANNELS).contains(&k) {
-                            xp[at(f * CHANNELS + k)] = 1.0;
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
 
 /// Conv-1 patches of one padded sample: `cols` `[32, 1152]`, row `i·8 + j`,
 /// column `c·64 + r·8 + q` = `xp[c][4i + r][4j + q]` (Burn's weight order).
@@ -549,29 +492,7 @@ impl EncoderPack {
             }
             sum_rows(dz1, s * P1, C1 * k, &mut grads.b1);
             if let Some(dx) = dx.as_deref_mut() {
-                // dcols [s·32, 1152] = dz1 [s·32, 16K] · W1 [16K, 1152]
-                sgemm(
-                    s * P1,
-                    PATCH1,
-                    C1 * k,
-                    dz1,
-                    [C1 * k, 1],
-                    &self.w1,
-                    [PATCH1, 1],
-                    &mut cols,
-                    [PATCH1, 1],
-                    false,
-                );
-                for t in 0..s {
-                    xp.fill(0.0);
-                    col2im1(&cols[t * P1 * PATCH1..(t + 1) * P1 * PATCH1], &mut xp);
-                    let out = &mut dx[(s0 + t) * STACKED_LEN..(s0 + t + 1) * STACKED_LEN];
-                    for (row_out, row_in) in
-                        out.chunks_exact_mut(AZ_CELLS).zip(xp.chunks_exact(W_PAD))
-                    {
-                        row_out.copy_from_slice(&row_in[AZ_PAD..AZ_PAD + AZ_CELLS]);
-                    }
-                }
+                self.grid_gradient(dz1, s0, s, &mut cols, &mut xp, dx);
             }
         }
         if let Some(dwt) = dw1t {
@@ -580,6 +501,42 @@ impl EncoderPack {
                 for (o, v) in row.iter().enumerate() {
                     grads.w1[o * PATCH1 + kk] += v;
                 }
+            }
+        }
+    }
+
+    /// The grids' gradient of the `s` samples from `s0` of a task, into
+    /// `dx`: `dcols = dz1·W1` with conv 1's `dz1` `[s·32, 16K]`, folded back
+    /// onto the padded grid and unpadded.
+    fn grid_gradient(
+        &self,
+        dz1: &[f32],
+        s0: usize,
+        s: usize,
+        cols: &mut [f32],
+        xp: &mut [f32],
+        dx: &mut [f32],
+    ) {
+        let k = self.k;
+        // dcols [s·32, 1152] = dz1 [s·32, 16K] · W1 [16K, 1152]
+        sgemm(
+            s * P1,
+            PATCH1,
+            C1 * k,
+            dz1,
+            [C1 * k, 1],
+            &self.w1,
+            [PATCH1, 1],
+            cols,
+            [PATCH1, 1],
+            false,
+        );
+        for t in 0..s {
+            xp.fill(0.0);
+            col2im1(&cols[t * P1 * PATCH1..(t + 1) * P1 * PATCH1], xp);
+            let out = &mut dx[(s0 + t) * STACKED_LEN..(s0 + t + 1) * STACKED_LEN];
+            for (row_out, row_in) in out.chunks_exact_mut(AZ_CELLS).zip(xp.chunks_exact(W_PAD)) {
+                row_out.copy_from_slice(&row_in[AZ_PAD..AZ_PAD + AZ_CELLS]);
             }
         }
     }

@@ -23,6 +23,7 @@
 
 pub mod dense;
 pub mod encoder;
+pub mod grids;
 pub mod infer;
 pub mod ops;
 pub mod sparse;

@@ -16,8 +16,8 @@
 //! The loops are compiled for AVX-512, AVX2 + FMA and plain SSE2, and the
 //! widest the CPU has is picked at run time.
 
-use super::encoder::GridsRef;
 use super::geometry::*;
+use super::grids::GridsRef;
 use crate::frames::FRAME_BYTES;
 use deepfoids_sensors::{AZ_CELLS, CELLS, CHANNELS, STACK, STACKED_LEN};
 

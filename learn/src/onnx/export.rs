@@ -239,127 +239,165 @@ pub enum Head<'a> {
     },
 }
 
-/// An actor (body and head) as an ONNX model (protobuf bytes).
+/// An actor (body and head) as an ONNX model (protobuf bytes): the encoder
+/// and trunk, the head's two action outputs, ML-Agents' constants, then the
+/// graph's inputs and outputs and the model's metadata.
 pub fn export_policy(body: &Body, head: Head<'_>, meta: &Metadata) -> Vec<u8> {
-    let slope = body.slope() as f32;
     let mut b = Builder {
         nodes: vec![],
         init: vec![],
     };
-    let x = b.conv("conv1", &body.conv1, "obs_0", K1, S1, AZ_PAD);
-    let x = b.leaky("conv1.act", &x, slope);
-    let x = b.conv("conv2", &body.conv2, &x, K2, S2, 0);
-    let x = b.leaky("conv2.act", &x, slope);
-    let x = b.node(
-        "Flatten",
-        "flatten",
-        &[&x],
-        "flatten.out",
-        vec![int("axis", 1)],
-    );
-    let x = b.gemm("fc_grid", &body.fc_grid, &x);
-    let x = b.leaky("fc_grid.act", &x, slope);
-    let mut x = b.node(
-        "Concat",
-        "concat",
-        &[&x, "obs_1"],
-        "concat.out",
-        vec![int("axis", 1)],
-    );
-    for (k, layer) in body.trunk.iter().enumerate() {
-        let z = b.gemm(&format!("trunk.{k}"), layer, &x);
-        let s = b.node(
-            "Sigmoid",
-            &format!("trunk.{k}.sigmoid"),
-            &[&z],
-            &format!("trunk.{k}.sigmoid.out"),
-            vec![],
-        );
-        x = b.node(
-            "Mul",
-            &format!("trunk.{k}.swish"),
-            &[&z, &s],
-            &format!("trunk.{k}.swish.out"),
-            vec![],
-        );
-    }
-    let clip = |lo: f32, hi: f32| vec![float("min", lo), float("max", hi)];
+    let x = b.body(body);
     match head {
-        Head::Gaussian { mean, log_std } => {
-            let mean = b.gemm("actor_mean", mean, &x);
-            b.node(
-                "Clip",
-                "deterministic",
-                &[&mean],
-                "deterministic_continuous_actions",
-                clip(-1.0, 1.0),
-            );
-            let log_std = b.constant("log_std", log_std.clone());
-            let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
-            let sample = b.sample(&mean, &std);
-            b.node(
-                "Clip",
-                "sampled",
-                &[&sample],
-                "continuous_actions",
-                clip(-1.0, 1.0),
-            );
-        }
+        Head::Gaussian { mean, log_std } => b.gaussian_head(&x, mean, log_std),
         Head::Squashed {
             mean,
             log_std,
-            bounds: [lo, hi],
-        } => {
-            let mean = b.gemm("actor_mean", mean, &x);
-            b.node(
-                "Tanh",
-                "deterministic",
-                &[&mean],
-                "deterministic_continuous_actions",
+            bounds,
+        } => b.squashed_head(&x, mean, log_std, bounds),
+    }
+    b.ml_agents_constants();
+    model(graph(b, meta), meta).to_bytes()
+}
+
+fn clip(lo: f32, hi: f32) -> Vec<AttributeProto> {
+    vec![float("min", lo), float("max", hi)]
+}
+
+impl Builder {
+    /// The encoder (two convolutions, the azimuth padded in the first), the
+    /// grid's dense layer, the vector observation concatenated, and the
+    /// Swish trunk; returns the trunk's output.
+    fn body(&mut self, body: &Body) -> String {
+        let b = self;
+        let slope = body.slope() as f32;
+        let x = b.conv("conv1", &body.conv1, "obs_0", K1, S1, AZ_PAD);
+        let x = b.leaky("conv1.act", &x, slope);
+        let x = b.conv("conv2", &body.conv2, &x, K2, S2, 0);
+        let x = b.leaky("conv2.act", &x, slope);
+        let x = b.node(
+            "Flatten",
+            "flatten",
+            &[&x],
+            "flatten.out",
+            vec![int("axis", 1)],
+        );
+        let x = b.gemm("fc_grid", &body.fc_grid, &x);
+        let x = b.leaky("fc_grid.act", &x, slope);
+        let mut x = b.node(
+            "Concat",
+            "concat",
+            &[&x, "obs_1"],
+            "concat.out",
+            vec![int("axis", 1)],
+        );
+        for (k, layer) in body.trunk.iter().enumerate() {
+            let z = b.gemm(&format!("trunk.{k}"), layer, &x);
+            let s = b.node(
+                "Sigmoid",
+                &format!("trunk.{k}.sigmoid"),
+                &[&z],
+                &format!("trunk.{k}.sigmoid.out"),
                 vec![],
             );
-            let raw = b.gemm("actor_log_std", log_std, &x);
-            let t = b.node("Tanh", "log_std.tanh", &[&raw], "log_std.tanh.out", vec![]);
-            let mut scalar = |name: &str, v: f32| {
-                b.init.push(tensor(name, &[1], &[v]));
-                name.to_string()
-            };
-            let (one, half_range, low) = (
-                scalar("log_std.one", 1.0),
-                scalar("log_std.half_range", 0.5 * (hi - lo)),
-                scalar("log_std.low", lo),
-            );
-            let t1 = b.node(
-                "Add",
-                "log_std.shift",
-                &[&t, &one],
-                "log_std.shift.out",
-                vec![],
-            );
-            let t2 = b.node(
+            x = b.node(
                 "Mul",
-                "log_std.scale",
-                &[&t1, &half_range],
-                "log_std.scale.out",
+                &format!("trunk.{k}.swish"),
+                &[&z, &s],
+                &format!("trunk.{k}.swish.out"),
                 vec![],
             );
-            let log_std = b.node("Add", "log_std", &[&t2, &low], "log_std.out", vec![]);
-            let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
-            let sample = b.sample(&mean, &std);
-            b.node("Tanh", "sampled", &[&sample], "continuous_actions", vec![]);
+        }
+        x
+    }
+
+    /// PPO's head: `clip(μ)` and `clip(μ + σ·ε)`, σ from a state-independent log-std.
+    fn gaussian_head(&mut self, x: &str, mean: &Linear, log_std: &Tensor<1>) {
+        let b = self;
+        let mean = b.gemm("actor_mean", mean, x);
+        b.node(
+            "Clip",
+            "deterministic",
+            &[&mean],
+            "deterministic_continuous_actions",
+            clip(-1.0, 1.0),
+        );
+        let log_std = b.constant("log_std", log_std.clone());
+        let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
+        let sample = b.sample(&mean, &std);
+        b.node(
+            "Clip",
+            "sampled",
+            &[&sample],
+            "continuous_actions",
+            clip(-1.0, 1.0),
+        );
+    }
+
+    /// SAC's head: `tanh(μ)` and `tanh(μ + σ(s)·ε)`, the log-std squashed
+    /// into `bounds`.
+    fn squashed_head(&mut self, x: &str, mean: &Linear, log_std: &Linear, [lo, hi]: [f32; 2]) {
+        let b = self;
+        let mean = b.gemm("actor_mean", mean, x);
+        b.node(
+            "Tanh",
+            "deterministic",
+            &[&mean],
+            "deterministic_continuous_actions",
+            vec![],
+        );
+        let raw = b.gemm("actor_log_std", log_std, x);
+        let t = b.node("Tanh", "log_std.tanh", &[&raw], "log_std.tanh.out", vec![]);
+        let mut scalar = |name: &str, v: f32| {
+            b.init.push(tensor(name, &[1], &[v]));
+            name.to_string()
+        };
+        let (one, half_range, low) = (
+            scalar("log_std.one", 1.0),
+            scalar("log_std.half_range", 0.5 * (hi - lo)),
+            scalar("log_std.low", lo),
+        );
+        let t1 = b.node(
+            "Add",
+            "log_std.shift",
+            &[&t, &one],
+            "log_std.shift.out",
+            vec![],
+        );
+        let t2 = b.node(
+            "Mul",
+            "log_std.scale",
+            &[&t1, &half_range],
+            "log_std.scale.out",
+            vec![],
+        );
+        let log_std = b.node("Add", "log_std", &[&t2, &low], "log_std.out", vec![]);
+        let std = b.node("Exp", "std", &[&log_std], "std.out", vec![]);
+        let sample = b.sample(&mean, &std);
+        b.node("Tanh", "sampled", &[&sample], "continuous_actions", vec![]);
+    }
+
+    /// ML-Agents' constant outputs: float initializers passed through
+    /// Identity nodes.
+    fn ml_agents_constants(&mut self) {
+        let b = self;
+        for (name, value) in [
+            ("version_number", MODEL_EXPORT_VERSION),
+            ("memory_size", 0.0),
+            ("continuous_action_output_shape", ACTIONS as f32),
+        ] {
+            b.init
+                .push(tensor(&format!("{name}.value"), &[1], &[value]));
+            b.node("Identity", name, &[&format!("{name}.value")], name, vec![]);
         }
     }
-    for (name, value) in [
-        ("version_number", MODEL_EXPORT_VERSION),
-        ("memory_size", 0.0),
-        ("continuous_action_output_shape", ACTIONS as f32),
-    ] {
-        b.init
-            .push(tensor(&format!("{name}.value"), &[1], &[value]));
-        b.node("Identity", name, &[&format!("{name}.value")], name, vec![]);
-    }
+}
+
+/// The graph: the builder's nodes and initializers, the inputs (`batch` a
+/// dynamic axis) and ML-Agents' outputs.
+fn graph(b: Builder, meta: &Metadata) -> GraphProto {
     let batch = Err("batch");
-    let graph = GraphProto {
+    GraphProto {
         node: b.nodes,
         name: format!("deepfoids_{}", meta.behaviour),
         initializer: b.init,
@@ -387,7 +425,11 @@ pub fn export_policy(body: &Body, head: Head<'_>, meta: &Metadata) -> Vec<u8> {
                 &[batch, Ok(ACTIONS as i64)],
             ),
         ],
-    };
+    }
+}
+
+/// The model: producer, opset and the metadata (layouts included).
+fn model(graph: GraphProto, meta: &Metadata) -> ModelProto {
     let props = [
         ("species", meta.species.clone()),
         ("behaviour", meta.behaviour.clone()),
@@ -421,5 +463,4 @@ pub fn export_policy(body: &Body, head: Head<'_>, meta: &Metadata) -> Vec<u8> {
             })
             .collect(),
     }
-    .to_bytes()
 }

@@ -1,0 +1,293 @@
+//! SPEC §4 and §6.1: actions act at every physics step, and `r_M`, `r_BD`,
+//! `r_E` accrue at every physics step while `r_NC` is paid once per contact
+//! start; SPEC §6.2's extensions. Hand-computed on seabream (BL = 0.34 m,
+//! d_sense = 1.02 m, k = 5, dt_sim = 0.02 s) and coho (BL = 0.49 m, k = 10),
+//! with the `thesis` profile's pretraining weights (the default profile).
+mod common;
+use common::*;
+use deepfoids_env::config::{ActionTiming, NeighbourForm, RewardTiming};
+use deepfoids_env::kinematics::angle_deg;
+use glam::Vec3;
+
+const BC: usize = 0;
+const NC: usize = 1;
+const BD: usize = 2;
+const ND: usize = 3;
+const E: usize = 4;
+const M: usize = 5;
+
+fn terms(env: &deepfoids_env::Env, i: usize) -> [f32; 7] {
+    env.output().behaviours[0].terms[i]
+}
+
+#[test]
+fn the_default_profile_is_timed_as_unity_ran_it() {
+    let s = scene("seabream_default", 1);
+    assert_eq!(s.reward_profile, "thesis");
+    assert_eq!(s.rewards.timing.actions, ActionTiming::PerStep);
+    assert_eq!(s.rewards.timing.rewards, RewardTiming::PerStep);
+    assert_eq!(s.rewards.timing.turn_step_deg, 1.0);
+    assert!(s.rewards.extensions.boundary_ends_episode);
+}
+
+/// A full speed action: 4.1 BL/s per second × 0.02 s = 0.082 BL/s per step,
+/// so over one coho decision (k = 10) 0.5 → 1.32 BL/s (SPEC §4: 0.82 BL/s per
+/// decision), and a full yaw turns 1° per step, 10° per decision. Seabream
+/// (k = 5): 0.41 BL/s and 5°.
+#[test]
+fn a_full_action_changes_speed_and_heading_per_step() {
+    // Coho at Onmaehama 1.5 m deep is in water of 8.5 °C (surface 9.5 °C):
+    // within its band, so no vertical push bends the turn.
+    let scene = |id: &str, n| {
+        let mut s = scene(id, n);
+        if id == "coho_default" {
+            s.site.surface_temperature = 9.5;
+        }
+        s
+    };
+    for (id, k) in [("coho_default", 10.0f32), ("seabream_default", 5.0)] {
+        let mut env = calm_env(scene(id, 1));
+        place(&mut env, 0, Vec3::new(0.0, -1.5, 0.0), Vec3::Z, 0.5);
+        env.observe_now();
+        let bl = env.world().bl[0];
+        env.step(&[vec![1.0, 0.0, 0.0]]).unwrap();
+        let speed_bl = env.world().speed[0] / bl;
+        assert!(
+            close(speed_bl, 0.5 + k * 4.1 * 0.02, 1e-4),
+            "{id}: {speed_bl}"
+        );
+        // A full yaw at constant speed: k degrees.
+        let mut env = calm_env(scene(id, 1));
+        place(&mut env, 0, Vec3::new(0.0, -1.5, 0.0), Vec3::Z, 0.5);
+        env.observe_now();
+        env.step(&[vec![0.0, 0.0, 1.0]]).unwrap();
+        let turned = angle_deg(Vec3::Z, env.world().heading[0]);
+        assert!(close(turned, k, 1e-3), "{id}: turned {turned}°");
+        assert!(close(env.world().speed[0] / bl, 0.5, 1e-5));
+    }
+}
+
+/// A fish 0.5 m from the wall at x = 1.5 swimming along it for the k = 5 steps
+/// of a decision: per step r_BD = −2 · (1.02 − 0.5)/1.02 = −1.019608, so the
+/// decision pays 5 × that = −5.098039. Level at 0.5 BL/s, r_M = +2 per step:
+/// +10. No turn, no speed change: r_E = 0.
+#[test]
+fn a_fish_near_a_wall_for_k_steps_pays_k_times_the_per_step_penalty() {
+    let mut env = calm_env(scene("seabream_default", 1));
+    place(&mut env, 0, Vec3::new(1.0, -1.5, 0.0), Vec3::Z, 0.5);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    let t = terms(&env, 0);
+    assert!(close(t[BD], 5.0 * -1.019608, 1e-4), "{t:?}");
+    assert_eq!(t[M], 10.0);
+    assert!(close(t[E], 0.0, 1e-6), "{t:?}");
+    assert_eq!(t[BC], 0.0);
+    // The earlier reading pays the decision's state once: −1.019608 and +2.
+    let mut s = scene("seabream_default", 1);
+    s.rewards.timing.rewards = RewardTiming::PerDecision;
+    let mut env = calm_env(s);
+    place(&mut env, 0, Vec3::new(1.0, -1.5, 0.0), Vec3::Z, 0.5);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    let t = terms(&env, 0);
+    assert!(close(t[BD], -1.019608, 1e-4), "{t:?}");
+    assert_eq!(t[M], 2.0);
+}
+
+/// A coho at 0.5 BL/s, level, far from everything: +2 at each of its 10 steps,
+/// the living reward of SPEC §6.1 (+20 per decision).
+#[test]
+fn coho_earns_twenty_per_decision_for_swimming() {
+    let mut env = calm_env(scene("coho_default", 1));
+    place(&mut env, 0, Vec3::new(0.0, -2.3, 0.0), Vec3::Z, 0.5);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    assert_eq!(terms(&env, 0)[M], 20.0);
+}
+
+/// A full yaw at 0.5 BL/s: each step turns 1°, and the velocity changes by
+/// |Δv| = 2 · 0.5 · sin 0.5° = 0.00872654 BL/s: r_E per step = −0.001 · 1 −
+/// 5 · 0.00872654 = −0.0446327; the decision's 5 steps: −0.223163.
+#[test]
+fn energy_accrues_per_step() {
+    let mut env = calm_env(scene("seabream_default", 1));
+    place(&mut env, 0, Vec3::new(0.0, -1.5, -0.5), Vec3::Z, 0.5);
+    env.observe_now();
+    env.step(&[vec![0.0, 0.0, 1.0]]).unwrap();
+    let t = terms(&env, 0);
+    assert!(close(t[E], -0.223163, 2e-5), "{t:?}");
+}
+
+/// Two fish side by side, overlapping, swimming in parallel with nothing to
+/// part them (no kicks, no repulsion): the contact starts at the first step
+/// and lasts. Per step (SPEC §6.1) r_NC = −0.5 at the first decision only;
+/// the earlier reading charges −0.5 at every decision the contact lasts.
+#[test]
+fn a_contact_that_lasts_pays_once() {
+    for (timing, want) in [
+        (RewardTiming::PerStep, [-0.5, 0.0, 0.0]),
+        (RewardTiming::PerDecision, [-0.5, -0.5, -0.5]),
+    ] {
+        let mut s = scene("seabream_default", 2);
+        s.rewards.timing.rewards = timing;
+        s.rewards.contacts.kick = 0.0;
+        s.rewards.contacts.push = 0.0;
+        s.physics.repulsion = 0.0;
+        let mut env = calm_env(s);
+        let c = Vec3::new(0.0, -1.5, -1.0);
+        place(&mut env, 0, c, Vec3::Z, 0.5);
+        place(&mut env, 1, c + Vec3::new(0.03, 0.0, 0.0), Vec3::Z, 0.5);
+        env.observe_now();
+        for (d, w) in want.iter().enumerate() {
+            env.step(&zeros(&env)).unwrap();
+            for i in 0..2 {
+                assert_eq!(terms(&env, i)[NC], *w, "{timing:?} decision {d} fish {i}");
+            }
+        }
+    }
+}
+
+/// The kick of SPEC §6.1: fish 0 (0.5 BL/s = 0.17 m/s along +z) touches
+/// fish 1 on its +x side at the first step; at the second it gets −0.03 m/s
+/// along x, then −0.0003 m/s at each step the overlap lasts (steps 3–5):
+/// v = (−0.0309, 0, 0.17), heading x = −0.0309 / 0.172785 = −0.178834.
+#[test]
+fn a_contact_start_kicks_both_fish_apart() {
+    let mut s = scene("seabream_default", 2);
+    s.physics.repulsion = 0.0;
+    let mut env = calm_env(s);
+    let c = Vec3::new(0.0, -1.5, -1.0);
+    place(&mut env, 0, c, Vec3::Z, 0.5);
+    place(&mut env, 1, c + Vec3::new(0.03, 0.0, 0.0), Vec3::Z, 0.5);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    let h = env.world().heading.clone();
+    assert!(close(h[0].x, -0.178834, 2e-3), "{}", h[0]);
+    assert!(close(h[1].x, 0.178834, 2e-3), "{}", h[1]);
+    assert_eq!(terms(&env, 0)[NC], -0.5);
+}
+
+/// SPEC §6.2, `boundary_ends_episode = false`: a seabream swimming into the
+/// wall at x = 1.5 pays r_BC = −300 once, is not terminated, and bounces
+/// back: its heading is reflected to −x and its collider stays inside.
+#[test]
+fn a_net_collision_can_bounce_without_ending_the_episode() {
+    let mut s = scene("seabream_default", 1);
+    s.rewards.extensions.boundary_ends_episode = false;
+    let mut env = calm_env(s);
+    place(&mut env, 0, Vec3::new(1.3, -1.5, 0.0), Vec3::X, 2.0);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    let out = &env.output().behaviours[0];
+    assert!(!out.terminated[0]);
+    assert_eq!(out.terms[0][BC], -300.0);
+    let (p, f) = (env.world().position[0], env.world().heading[0]);
+    assert!(f.x < -0.99, "heading {f}");
+    assert!(p.x + 0.17 < 1.5, "position {p}");
+    // Its episode goes on: the next decision carries no boundary collision.
+    env.step(&zeros(&env)).unwrap();
+    assert_eq!(terms(&env, 0)[BC], 0.0);
+    // With the default rule the same crossing ends the episode.
+    let mut env = calm_env(scene("seabream_default", 1));
+    place(&mut env, 0, Vec3::new(1.3, -1.5, 0.0), Vec3::X, 2.0);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    assert!(env.output().behaviours[0].terminated[0]);
+}
+
+/// Fish 0 with a parallel neighbour at 0.2 m (inside a personal space of
+/// 0.66 BL = 0.2244 m) and one at 0.5 m: the near one does not count for r_ND
+/// and costs the penalty 1: r_ND = 1.5 · 1 − 1 = 0.5.
+#[test]
+fn personal_space() {
+    let mut s = scene("seabream_default", 3);
+    s.rewards.extensions.personal_space_bl = 0.66;
+    s.rewards.extensions.personal_space_penalty = 1.0;
+    let mut env = calm_env(s);
+    let c = Vec3::new(-0.5, -1.5, -0.3);
+    place(&mut env, 0, c, Vec3::Z, 0.5);
+    place(&mut env, 1, c + Vec3::new(0.2, 0.0, 0.0), Vec3::Z, 0.5);
+    place(&mut env, 2, c + Vec3::new(-0.5, 0.0, 0.0), Vec3::Z, 0.5);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    assert!(close(terms(&env, 0)[ND], 0.5, 2e-3), "{:?}", terms(&env, 0));
+}
+
+/// The same four neighbours as the thesis-sum test of rewards.rs (headings 0°,
+/// 30°, 60°, 90° off; two of them touch, so no kicks here): the mean form
+/// gives 1.5 · (1 + 2/3 + 1/3 + 0)/4 = 0.75.
+#[test]
+fn neighbour_mean() {
+    let mut s = scene("seabream_default", 5);
+    s.rewards.extensions.neighbour_form = NeighbourForm::Mean;
+    s.rewards.contacts.kick = 0.0;
+    s.rewards.contacts.push = 0.0;
+    let mut env = calm_env(s);
+    let c = Vec3::new(-0.5, -1.5, -0.3);
+    place(&mut env, 0, c, Vec3::Z, 0.2);
+    for (k, (dx, deg)) in [(0.7f32, 60f32), (0.3, 0.0), (0.9, 90.0), (0.5, 30.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let f = Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
+        place(&mut env, k + 1, c + Vec3::new(dx, 0.0, 0.0), f, 0.2);
+    }
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    assert!(
+        close(terms(&env, 0)[ND], 0.75, 2e-3),
+        "{:?}",
+        terms(&env, 0)
+    );
+}
+
+/// Size assortment: a parallel neighbour half as long counts half:
+/// r_ND = 1.5 · 1 · 0.17/0.34 = 0.75 (for both fish).
+#[test]
+fn size_weighted_alignment() {
+    let mut s = scene("seabream_default", 2);
+    s.rewards.extensions.size_weighted = true;
+    let mut env = calm_env(s);
+    let c = Vec3::new(-0.5, -1.5, -0.3);
+    place(&mut env, 0, c, Vec3::Z, 0.5);
+    place(&mut env, 1, c + Vec3::new(0.5, 0.0, 0.0), Vec3::Z, 0.5);
+    env.world_mut().bl[1] = 0.17;
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    assert!(
+        close(terms(&env, 0)[ND], 0.75, 2e-3),
+        "{:?}",
+        terms(&env, 0)
+    );
+}
+
+/// Assortment by species: in the three-species scene (one fish each) the
+/// seabream (fish 2) with a coho and a yellowtail 0.4 and 0.8 m away, set off
+/// in parallel, earns nearly 1.5 · 2 = 3 from them (the coho, far too warm at
+/// Nishiki, starts to sink), and nothing when only its own species counts.
+#[test]
+fn conspecific_only_alignment() {
+    use deepfoids_env::{ConfigDirs, Phase, Scene};
+    let dirs = ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
+    let mut s = Scene::load(&dirs, "three_species", Phase::Pretrain).unwrap();
+    s.physics.chase_probability = 0.0;
+    for b in &mut s.behaviours {
+        b.count = 1;
+        b.body_scales = vec![(1, deepfoids_env::config::Range::Fixed(1.0))];
+    }
+    let run = |conspecific: bool| {
+        let mut s = s.clone();
+        s.rewards.extensions.conspecific_only = conspecific;
+        let mut env = calm_env(s);
+        let c = Vec3::new(0.0, -2.0, 0.0);
+        for (i, dx) in [(0, 0.4f32), (1, 0.8), (2, 0.0)] {
+            place(&mut env, i, c + Vec3::new(dx, 0.0, 0.0), Vec3::Z, 0.5);
+        }
+        env.observe_now();
+        let out = env.step(&zeros(&env)).unwrap();
+        assert_eq!(out.behaviours[2].species, "seabream");
+        out.behaviours[2].terms[0][ND]
+    };
+    assert!(run(false) > 2.5, "{}", run(false));
+    assert_eq!(run(true), 0.0);
+}

@@ -1,0 +1,280 @@
+//! Training a scene: one policy per behaviour, PPO or SAC, into a run folder
+//! with its resolved configuration, then a deterministic evaluation of it.
+
+use crate::evaluate::{EvalMeta, RunArgs as EvalRunArgs, evaluate, print_table, write_outputs};
+use crate::policies::load_trained;
+use anyhow::{Context, Result, bail};
+use deepfoids_env::metrics::Summary;
+use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
+use deepfoids_learn::driver::open_sources;
+use deepfoids_learn::{Algorithm, Backend, ProgressMode, RunArgs, TrainOutcome};
+use deepfoids_ppo::PpoConfig;
+use deepfoids_sac::SacConfig;
+use std::path::{Path, PathBuf};
+
+/// How a scene is trained (the options `train`, `pipeline` and `reproduce`
+/// share).
+#[derive(Clone, Debug)]
+pub struct TrainOptions {
+    /// Training algorithm.
+    pub algo: Algorithm,
+    /// Random seed (weights, exploration, environment).
+    pub seed: u64,
+    /// Folder of the runs.
+    pub runs_dir: PathBuf,
+    /// Compute backend of the training (acting runs on the hand-written kernels).
+    pub backend: Backend,
+    /// Simulated seconds of the deterministic evaluation after training (0: none).
+    pub eval_seconds: f64,
+    /// No progress bar and no progress lines.
+    pub quiet: bool,
+    /// Budgets by species, `[pretraining, transfer]`, replacing the training
+    /// config's (`reproduce`'s profiles).
+    pub budgets: std::collections::BTreeMap<String, [u64; 2]>,
+}
+
+/// A finished training command.
+pub struct Trained {
+    pub run_dir: PathBuf,
+    pub outcome: TrainOutcome,
+    pub summary: Option<Summary>,
+}
+
+/// The runs of `--init-from` must hold policies of this algorithm and
+/// architecture with a source for every behaviour of `scene`: checked before
+/// the run folder is created, so a wrong one leaves no stub behind.
+pub fn check_init_from(
+    dirs: &ConfigDirs,
+    scene: &Scene,
+    init_from: &[PathBuf],
+    opts: &TrainOptions,
+) -> Result<()> {
+    if init_from.is_empty() {
+        return Ok(());
+    }
+    match opts.algo {
+        Algorithm::Ppo => open_sources(
+            &deepfoids_ppo::Ppo {
+                config: PpoConfig::load(dirs)?,
+            },
+            init_from,
+            scene,
+        )?,
+        Algorithm::Sac => open_sources(
+            &deepfoids_sac::Sac {
+                config: SacConfig::load(dirs)?,
+            },
+            init_from,
+            scene,
+        )?,
+    };
+    Ok(())
+}
+
+/// Refuse to overwrite a run by accident (ML-Agents' behaviour). The caller
+/// holds the folder's lock, so `--force` never removes a run in use.
+pub fn prepare_run_dir(run_dir: &Path, resume: bool, force: bool) -> Result<()> {
+    if resume {
+        if !run_dir.is_dir() {
+            bail!("--resume: there is no run folder {}", run_dir.display());
+        }
+    } else if run_dir.exists() {
+        if force {
+            std::fs::remove_dir_all(run_dir)
+                .with_context(|| format!("cannot remove {}", run_dir.display()))?;
+        } else {
+            bail!(
+                "the run folder {} exists; use --resume to continue it, --force to replace it, or another --run-id",
+                run_dir.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Train `scene` into `run_dir`, write the resolved configuration, and evaluate the result.
+#[allow(clippy::too_many_arguments)]
+pub fn train_scene(
+    dirs: &ConfigDirs,
+    scene: Scene,
+    run_dir: &Path,
+    run_id: &str,
+    steps: Option<u64>,
+    init_from: &[PathBuf],
+    resume: bool,
+    opts: &TrainOptions,
+) -> Result<Trained> {
+    let (mut ppo, mut sac) = match opts.algo {
+        Algorithm::Ppo => (Some(PpoConfig::load(dirs)?), None),
+        Algorithm::Sac => (None, Some(SacConfig::load(dirs)?)),
+    };
+    for (species, b) in &opts.budgets {
+        if let Some(c) = ppo.as_mut() {
+            c.budgets.insert(species.clone(), *b);
+        }
+        if let Some(c) = sac.as_mut() {
+            c.budgets.insert(species.clone(), *b);
+        }
+    }
+    // Each behaviour's own budget (ML-Agents' max_steps is per behaviour).
+    let mut budgets = toml::Table::new();
+    for b in &scene.behaviours {
+        let species = &b.species.name;
+        let budget = steps.unwrap_or_else(|| match (&ppo, &sac) {
+            (Some(c), _) => c.budget(species, scene.phase),
+            (_, Some(c)) => c.budget(species, scene.phase),
+            _ => unreachable!("one config is loaded"),
+        });
+        budgets.insert(b.name.clone(), (budget as i64).into());
+    }
+    if !resume {
+        check_init_from(dirs, &scene, init_from, opts)?;
+    }
+    std::fs::create_dir_all(run_dir)
+        .with_context(|| format!("cannot create {}", run_dir.display()))?;
+    if !resume {
+        let mut resolved = toml::Table::new();
+        let mut run = toml::Table::new();
+        run.insert("run_id".into(), run_id.into());
+        run.insert("algo".into(), opts.algo.as_str().into());
+        run.insert("scene".into(), scene.id.clone().into());
+        run.insert("phase".into(), scene.phase.as_str().into());
+        run.insert("seed".into(), (opts.seed as i64).into());
+        run.insert("steps".into(), budgets.clone().into());
+        run.insert("backend".into(), opts.backend.as_str().into());
+        if !init_from.is_empty() {
+            let runs: Vec<toml::Value> = init_from
+                .iter()
+                .map(|i| i.display().to_string().into())
+                .collect();
+            run.insert("init_from".into(), runs.into());
+        }
+        resolved.insert("run".into(), run.into());
+        if let Some(c) = &ppo {
+            resolved.insert("ppo".into(), toml::Value::try_from(c)?);
+        }
+        if let Some(c) = &sac {
+            resolved.insert("sac".into(), toml::Value::try_from(c)?);
+        }
+        resolved.insert("scene".into(), toml::Value::try_from(&scene)?);
+        deepfoids_io::write_atomic(
+            run_dir.join("config.toml"),
+            toml::to_string_pretty(&resolved)?.as_bytes(),
+        )?;
+    }
+    eprintln!(
+        "training {} on {} ({} phase) into {}",
+        opts.algo.as_str(),
+        scene.id,
+        scene.phase.as_str(),
+        run_dir.display()
+    );
+    let args = RunArgs {
+        scene: scene.clone(),
+        run_dir: run_dir.to_path_buf(),
+        run_id: run_id.to_string(),
+        seed: opts.seed,
+        steps,
+        resume,
+        init_from: init_from.to_vec(),
+        backend: opts.backend,
+        progress: if opts.quiet {
+            ProgressMode::Quiet
+        } else {
+            ProgressMode::Auto
+        },
+        progress_sink: None,
+        save: true,
+    };
+    let outcome = match (ppo, sac) {
+        (Some(config), _) => deepfoids_ppo::train(config, args)?,
+        (_, Some(config)) => deepfoids_sac::train(config, args)?,
+        _ => unreachable!("one config is loaded"),
+    };
+    print_training(&outcome);
+    let summary = if opts.eval_seconds > 0.0 {
+        Some(evaluate_run(scene, run_dir, opts)?)
+    } else {
+        None
+    };
+    Ok(Trained {
+        run_dir: run_dir.to_path_buf(),
+        outcome,
+        summary,
+    })
+}
+
+/// The mean of the first and of the last `k` points of a curve.
+pub fn curve_ends(curve: &[(u64, f64)], k: usize) -> Option<(f64, f64)> {
+    if curve.is_empty() {
+        return None;
+    }
+    let k = k.min(curve.len().div_ceil(2)).max(1);
+    let mean = |s: &[(u64, f64)]| s.iter().map(|x| x.1).sum::<f64>() / s.len() as f64;
+    Some((mean(&curve[..k]), mean(&curve[curve.len() - k..])))
+}
+
+fn print_training(o: &TrainOutcome) {
+    let t = &o.timing;
+    let total = (t.env + t.inference + t.update).as_secs_f64().max(1e-9);
+    println!(
+        "trained {} agent steps in {:.0} s ({:.0} agent-steps/s): environment {:.0} %, inference {:.0} %, updates {:.0} %",
+        o.steps_this_run,
+        o.wall_seconds,
+        o.steps_this_run as f64 / o.wall_seconds.max(1e-9),
+        100.0 * t.env.as_secs_f64() / total,
+        100.0 * t.inference.as_secs_f64() / total,
+        100.0 * t.update.as_secs_f64() / total
+    );
+    if let Some((a, b)) = curve_ends(&o.curve, 3) {
+        println!(
+            "learning curve (mean reward per decision): start {a:.3} → end {b:.3} over {} log points",
+            o.curve.len()
+        );
+    }
+    if let Some((a, b)) = curve_ends(&o.episode_curve, 3) {
+        println!("cumulative reward per episode: start {a:.1} → end {b:.1}");
+    }
+    if let Some(f) = &o.final_dir {
+        println!(
+            "final policy: {} (weights, state.json, <behaviour>.onnx)",
+            f.display()
+        );
+    }
+}
+
+/// Evaluate a run's final policy with sampled actions (SPEC §9; the
+/// environment's seed also seeds the sampling); writes `<run>/eval/`.
+pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result<Summary> {
+    let env_seed = opts.seed.wrapping_add(1_000_003);
+    let rerun = EvalRunArgs {
+        scene: scene.source.display().to_string(),
+        phase: scene.phase.as_str().to_string(),
+        seed: env_seed,
+        policy: run_dir.display().to_string(),
+        checkpoint: None,
+        stochastic: true,
+        warmup: 0.0,
+        seconds: opts.eval_seconds,
+    };
+    let mut env = Env::new(scene, env_seed);
+    let mut policy = load_trained(run_dir, None, &env, false, env_seed)?;
+    let eval = evaluate(&mut env, &mut policy, 0.0, opts.eval_seconds, |_, _, _| {})?;
+    let scene_id = env.scene().id.clone();
+    let name = policy.name();
+    let meta = EvalMeta {
+        scene: &scene_id,
+        policy: &name,
+        seed: opts.seed,
+        phase: env.scene().phase.as_str(),
+        deterministic: false,
+        warmup: 0.0,
+        seconds: eval.seconds,
+        wall_seconds: eval.wall_seconds,
+        ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
+        rerun,
+    };
+    let summary = write_outputs(&run_dir.join("eval"), &env, &eval, &meta)?;
+    print_table(&meta, &summary);
+    Ok(summary)
+}

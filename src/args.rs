@@ -1,0 +1,139 @@
+//! Options that several commands share, and the parsers of option values.
+//! Each command's own options live beside it in `commands/`.
+
+use clap::Args;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
+use deepfoids_env::Phase;
+use deepfoids_experiments::PolicyOptions;
+use deepfoids_experiments::evaluate::RunArgs;
+use deepfoids_experiments::training::TrainOptions;
+use deepfoids_learn::{Algorithm, Backend};
+use std::path::PathBuf;
+
+/// Options shared by every command that simulates.
+#[derive(Args, Debug, Clone)]
+pub struct SceneArgs {
+    /// Scene id (see `deepfoids scenes`) or path to a scene TOML file
+    #[arg(long, value_name = "ID|PATH")]
+    pub scene: String,
+    /// Random seed: fish traits, placement, respawns, chases and random actions
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Reward weights of this phase
+    #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
+    pub phase: Phase,
+}
+
+/// How a trained policy is loaded and run.
+#[derive(Args, Debug, Clone)]
+pub struct PolicyArgs {
+    /// With a run folder: load this checkpoint step instead of the final policy
+    #[arg(long, value_name = "STEP")]
+    pub checkpoint: Option<u64>,
+    /// Act with the policy's mean (clipped) instead of sampling from it; sampled
+    /// actions are the default, as Unity ML-Agents 1.x inference (the thesis') did
+    #[arg(long)]
+    pub deterministic: bool,
+    /// Sample actions (the default; kept so that older scripts still run)
+    #[arg(long, hide = true, conflicts_with = "deterministic")]
+    pub stochastic: bool,
+}
+
+impl PolicyArgs {
+    pub fn options(&self) -> PolicyOptions {
+        PolicyOptions {
+            checkpoint: self.checkpoint,
+            stochastic: !self.deterministic,
+        }
+    }
+}
+
+/// The options of a training (`train`, `pipeline`).
+#[derive(Args, Debug, Clone)]
+pub struct TrainOptionArgs {
+    /// Training algorithm
+    #[arg(long, default_value = "ppo", value_parser = algorithm())]
+    pub algo: Algorithm,
+    /// Random seed (weights, exploration, environment)
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Folder of the runs
+    #[arg(long, default_value = "runs", value_name = "DIR")]
+    pub runs_dir: PathBuf,
+    /// Compute backend of the training (acting runs on the hand-written kernels)
+    #[arg(long, default_value = "flex", value_parser = parse_backend)]
+    pub backend: Backend,
+    /// Simulated seconds of the evaluation after training, with sampled actions (0: none)
+    #[arg(long, default_value_t = 30.0)]
+    pub eval_seconds: f64,
+    /// No progress bar and no progress lines
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl TrainOptionArgs {
+    pub fn options(&self) -> TrainOptions {
+        TrainOptions {
+            algo: self.algo,
+            seed: self.seed,
+            runs_dir: self.runs_dir.clone(),
+            backend: self.backend,
+            eval_seconds: self.eval_seconds,
+            quiet: self.quiet,
+            budgets: Default::default(),
+        }
+    }
+}
+
+/// The values that run a simulation again (`summary.json`, `simulate.json`).
+pub fn rerun(
+    scene: &SceneArgs,
+    policy: &str,
+    opts: &PolicyArgs,
+    warmup: f64,
+    seconds: f64,
+) -> RunArgs {
+    RunArgs {
+        scene: scene.scene.clone(),
+        phase: scene.phase.as_str().to_string(),
+        seed: scene.seed,
+        policy: policy.to_string(),
+        checkpoint: opts.checkpoint,
+        stochastic: !opts.deterministic,
+        warmup,
+        seconds,
+    }
+}
+
+/// Back to the options, for loading the scene and policy again.
+pub fn from_rerun(run: &RunArgs) -> anyhow::Result<(SceneArgs, PolicyArgs)> {
+    Ok((
+        SceneArgs {
+            scene: run.scene.clone(),
+            seed: run.seed,
+            phase: run
+                .phase
+                .parse()
+                .map_err(|e| anyhow::anyhow!("phase `{}`: {e}", run.phase))?,
+        },
+        PolicyArgs {
+            checkpoint: run.checkpoint,
+            deterministic: !run.stochastic,
+            stochastic: false,
+        },
+    ))
+}
+
+pub fn parse_phase(s: &str) -> Result<Phase, String> {
+    s.parse()
+}
+
+pub fn parse_backend(s: &str) -> Result<Backend, String> {
+    s.parse()
+}
+
+/// `--algo`: `ppo` or `sac`, listed in `--help` and in the error.
+pub fn algorithm() -> impl TypedValueParser<Value = Algorithm> {
+    PossibleValuesParser::new(Algorithm::ALL.map(|a| a.as_str()))
+        .try_map(|s| s.parse::<Algorithm>())
+}

@@ -1,0 +1,36 @@
+//! What the integration tests of the binary share: running it from the
+//! repository root, its output as one text, and fresh temporary folders.
+//! Each test file uses a part of it.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// The `deepfoids` binary with `args`, run in the repository root.
+pub fn command(args: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_deepfoids"));
+    c.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+/// Run the binary with `args` to its end.
+pub fn deepfoids(args: &[&str]) -> Output {
+    command(args).output().expect("the binary runs")
+}
+
+/// Standard output, then standard error.
+pub fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// `deepfoids-<suite>-<name>-<pid>` in the temporary folder, removed if an
+/// earlier run left it (not created).
+pub fn temp_path(suite: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("deepfoids-{suite}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
