@@ -383,7 +383,7 @@ fn progress_lines_when_stdout_is_not_a_terminal() {
 }
 
 /// Learning: ten seabream in the 3 m cube, 40,000 agent steps (2,048-transition
-/// buffers, 512-sample minibatches, ML-Agents' rollout). What PPO learns first,
+/// buffers, 512-sample minibatches, ML-Agents' rollout), in the `legacy` profile. What PPO learns first,
 /// reliably, is to stop hitting the net: an untrained fish crosses it about once
 /// every 30 decisions (−300 each), and with the energy term measured per physics
 /// step (README, SPEC deviations) its own jitter costs little (≈ −0.3 per
@@ -398,7 +398,17 @@ fn ppo_improves_over_the_untrained_policy() {
     cfg.buffer_size = 2048;
     cfg.batch_size = 512;
     cfg.checkpoint_every = 1_000_000;
-    let out = run(&dir, "seabream_default", cfg, 40_000, 0, false, vec![]);
+    // The per-decision reading (the `legacy` profile) this test's numbers were
+    // derived for; under the default per-step timing 40,000 steps are too few to
+    // show the same rise (docs/reproduction/NOTES.md trains it for 600,000).
+    let mut a = args(&dir, "seabream_default", 40_000, 0, false, vec![]);
+    a.scene = Scene::load(
+        &dirs().with_reward_profile("legacy"),
+        "seabream_default",
+        Phase::Pretrain,
+    )
+    .unwrap();
+    let out = train(cfg, a).unwrap();
     assert!(out.curve.len() >= 10, "{} log points", out.curve.len());
     let v: Vec<f64> = out.curve.iter().map(|x| x.1).collect();
     let first = (v[0] + v[1]) / 2.0;
