@@ -143,6 +143,10 @@ pub struct BehaviourBatch {
     pub terms: Vec<[f32; N_TERMS]>,
     pub terminated: Vec<bool>,
     pub truncated: Vec<bool>,
+    /// Boundary collisions since the previous decision: the collider crossed a
+    /// wall, the bottom or the surface (terminated, or bounced back inside when
+    /// the profile keeps the episode going).
+    pub crossed: Vec<bool>,
     /// Neighbour collisions that began since the previous decision (partners
     /// not already touched during the previous decision).
     pub new_collisions: Vec<u16>,
@@ -298,6 +302,7 @@ impl Env {
                     terms: vec![[0.0; N_TERMS]; b.count],
                     terminated: vec![false; b.count],
                     truncated: vec![false; b.count],
+                    crossed: vec![false; b.count],
                     new_collisions: vec![0; b.count],
                 })
                 .collect(),
@@ -665,6 +670,7 @@ impl Env {
                     batch.rewards[a] = d.terms.total();
                     batch.terminated[a] = d.terminated;
                     batch.truncated[a] = d.truncated;
+                    batch.crossed[a] = d.crossed;
                     batch.new_collisions[a] = d.new_collisions;
                 }
             }

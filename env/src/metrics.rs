@@ -270,7 +270,7 @@ impl Recorder {
                 for (t, v) in batch.terms[i].iter().enumerate() {
                     a.terms[t] += *v as f64;
                 }
-                let bc = batch.terminated[i] as u64;
+                let bc = batch.crossed[i] as u64;
                 a.boundary += bc;
                 a.neighbour += batch.new_collisions[i] as u64;
                 self.pending_boundary += bc;

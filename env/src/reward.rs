@@ -147,6 +147,8 @@ pub fn chase(w: &RewardWeights, world: &World, i: usize, caught: bool) -> f32 {
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Outcome {
     pub terms: Terms,
+    /// The fish's collider crossed a boundary (terminated, or bounced back).
+    pub crossed: bool,
     pub terminated: bool,
     pub truncated: bool,
     pub new_collisions: u16,
@@ -210,6 +212,7 @@ impl Rewards<'_> {
         }
         Outcome {
             terms,
+            crossed: since.crossed,
             terminated,
             truncated: !terminated && since.episode_len + 1 >= self.max_episode,
             new_collisions: since.new_collisions(),

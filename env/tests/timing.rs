@@ -180,6 +180,8 @@ fn a_net_collision_can_bounce_without_ending_the_episode() {
     env.step(&zeros(&env)).unwrap();
     let out = &env.output().behaviours[0];
     assert!(!out.terminated[0]);
+    // Counted as a boundary collision all the same (metrics count `crossed`).
+    assert!(out.crossed[0]);
     assert_eq!(out.terms[0][BC], -300.0);
     let (p, f) = (env.world().position[0], env.world().heading[0]);
     assert!(f.x < -0.99, "heading {f}");
@@ -187,6 +189,7 @@ fn a_net_collision_can_bounce_without_ending_the_episode() {
     // Its episode goes on: the next decision carries no boundary collision.
     env.step(&zeros(&env)).unwrap();
     assert_eq!(terms(&env, 0)[BC], 0.0);
+    assert!(!env.output().behaviours[0].crossed[0]);
     // With the default rule the same crossing ends the episode.
     let mut env = calm_env(scene("seabream_default", 1));
     place(&mut env, 0, Vec3::new(1.3, -1.5, 0.0), Vec3::X, 2.0);
