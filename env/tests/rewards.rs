@@ -20,18 +20,6 @@ fn scene(id: &str, n: usize) -> deepfoids_env::Scene {
 use deepfoids_env::Chase;
 use glam::Vec3;
 
-const BC: usize = 0;
-const NC: usize = 1;
-const BD: usize = 2;
-const ND: usize = 3;
-const E: usize = 4;
-const M: usize = 5;
-const C: usize = 6;
-
-fn terms(env: &deepfoids_env::Env, i: usize) -> [f32; 7] {
-    env.output().behaviours[0].terms[i]
-}
-
 /// Two fish 0.5 m apart in mid-water, headings 30° apart:
 /// r_ND = 1.5 · (90 − 30)/90 = 1.0 for each; nothing else within range.
 #[test]

@@ -9,17 +9,6 @@ use deepfoids_env::config::{ActionTiming, NeighbourForm, RewardTiming};
 use deepfoids_env::kinematics::angle_deg;
 use glam::Vec3;
 
-const BC: usize = 0;
-const NC: usize = 1;
-const BD: usize = 2;
-const ND: usize = 3;
-const E: usize = 4;
-const M: usize = 5;
-
-fn terms(env: &deepfoids_env::Env, i: usize) -> [f32; 7] {
-    env.output().behaviours[0].terms[i]
-}
-
 #[test]
 fn the_default_profile_is_timed_as_unity_ran_it() {
     let s = scene("seabream_default", 1);

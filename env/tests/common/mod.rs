@@ -101,3 +101,17 @@ pub fn zeros(env: &Env) -> Vec<Vec<f32>> {
 pub fn close(a: f32, b: f32, tol: f32) -> bool {
     (a - b).abs() <= tol
 }
+
+/// Indices of the reward terms in `BehaviourBatch::terms` (`TERM_NAMES` order, Eq. 4.5).
+pub const BC: usize = 0;
+pub const NC: usize = 1;
+pub const BD: usize = 2;
+pub const ND: usize = 3;
+pub const E: usize = 4;
+pub const M: usize = 5;
+pub const C: usize = 6;
+
+/// The reward terms of agent `i` of the first behaviour at the latest decision.
+pub fn terms(env: &Env, i: usize) -> [f32; 7] {
+    env.output().behaviours[0].terms[i]
+}
