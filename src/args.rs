@@ -69,6 +69,10 @@ pub struct TrainOptionArgs {
     /// No progress bar and no progress lines
     #[arg(long)]
     pub quiet: bool,
+    /// Start even if the budget is too small for a single update (a run that
+    /// would learn nothing is refused otherwise)
+    #[arg(long)]
+    pub allow_no_update: bool,
 }
 
 impl TrainOptionArgs {
@@ -81,6 +85,7 @@ impl TrainOptionArgs {
             eval_seconds: self.eval_seconds,
             quiet: self.quiet,
             budgets: Default::default(),
+            allow_no_update: self.allow_no_update,
         }
     }
 }

@@ -148,6 +148,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
             "pretrained:seabream",
             "--steps",
             "1000",
+            "--allow-no-update",
             "--eval-seconds",
             "0",
             "--quiet",

@@ -6,7 +6,7 @@ use crate::policies::load_trained;
 use anyhow::{Context, Result, bail};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
-use deepfoids_learn::driver::open_sources;
+use deepfoids_learn::driver::{check_run, open_sources};
 use deepfoids_learn::{Algorithm, Backend, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_ppo::PpoConfig;
 use deepfoids_sac::SacConfig;
@@ -31,6 +31,8 @@ pub struct TrainOptions {
     /// Budgets by species, `[pretraining, transfer]`, replacing the training
     /// config's (`reproduce`'s profiles).
     pub budgets: std::collections::BTreeMap<String, [u64; 2]>,
+    /// Start a run whose budget makes no update (refused otherwise).
+    pub allow_no_update: bool,
 }
 
 /// A finished training command.
@@ -40,34 +42,53 @@ pub struct Trained {
     pub summary: Option<Summary>,
 }
 
-/// The runs of `--init-from` must hold policies of this algorithm and
-/// architecture with a source for every behaviour of `scene`: checked before
-/// the run folder is created, so a wrong one leaves no stub behind.
-pub fn check_init_from(
+/// The training config of `opts.algo`, with `opts.budgets` in place of its own.
+fn load_config(dirs: &ConfigDirs, opts: &TrainOptions) -> Result<Config> {
+    let mut config = match opts.algo {
+        Algorithm::Ppo => Config::Ppo(PpoConfig::load(dirs)?),
+        Algorithm::Sac => Config::Sac(SacConfig::load(dirs)?),
+    };
+    for (species, b) in &opts.budgets {
+        match &mut config {
+            Config::Ppo(c) => c.budgets.insert(species.clone(), *b),
+            Config::Sac(c) => c.budgets.insert(species.clone(), *b),
+        };
+    }
+    Ok(config)
+}
+
+/// A training config of either algorithm.
+enum Config {
+    Ppo(PpoConfig),
+    Sac(SacConfig),
+}
+
+/// Everything a run needs before its folder is made (issue 25): the
+/// training config loads and its sizes are within bounds; every behaviour's
+/// budget makes an update (unless `opts.allow_no_update`); the environment
+/// and the learners fit into the machine's memory; and the runs of
+/// `init_from` hold policies of this algorithm and architecture with a
+/// source for every behaviour of `scene`. A wrong start thus leaves nothing
+/// behind, and `--force` removes nothing, when it is refused.
+pub fn check_start(
     dirs: &ConfigDirs,
     scene: &Scene,
+    steps: Option<u64>,
     init_from: &[PathBuf],
     opts: &TrainOptions,
 ) -> Result<()> {
-    if init_from.is_empty() {
-        return Ok(());
+    match load_config(dirs, opts)? {
+        Config::Ppo(config) => {
+            let t = deepfoids_ppo::Ppo { config };
+            check_run(&t, scene, steps, opts.allow_no_update)?;
+            open_sources(&t, init_from, scene)?;
+        }
+        Config::Sac(config) => {
+            let t = deepfoids_sac::Sac { config };
+            check_run(&t, scene, steps, opts.allow_no_update)?;
+            open_sources(&t, init_from, scene)?;
+        }
     }
-    match opts.algo {
-        Algorithm::Ppo => open_sources(
-            &deepfoids_ppo::Ppo {
-                config: PpoConfig::load(dirs)?,
-            },
-            init_from,
-            scene,
-        )?,
-        Algorithm::Sac => open_sources(
-            &deepfoids_sac::Sac {
-                config: SacConfig::load(dirs)?,
-            },
-            init_from,
-            scene,
-        )?,
-    };
     Ok(())
 }
 
@@ -104,35 +125,21 @@ pub fn train_scene(
     resume: bool,
     opts: &TrainOptions,
 ) -> Result<Trained> {
-    let (mut ppo, mut sac) = match opts.algo {
-        Algorithm::Ppo => (Some(PpoConfig::load(dirs)?), None),
-        Algorithm::Sac => (None, Some(SacConfig::load(dirs)?)),
-    };
-    for (species, b) in &opts.budgets {
-        if let Some(c) = ppo.as_mut() {
-            c.budgets.insert(species.clone(), *b);
-        }
-        if let Some(c) = sac.as_mut() {
-            c.budgets.insert(species.clone(), *b);
-        }
-    }
+    let config = load_config(dirs, opts)?;
     // Each behaviour's own budget (ML-Agents' max_steps is per behaviour).
     let mut budgets = toml::Table::new();
     for b in &scene.behaviours {
         let species = &b.species.name;
-        let budget = steps.unwrap_or_else(|| match (&ppo, &sac) {
-            (Some(c), _) => c.budget(species, scene.phase),
-            (_, Some(c)) => c.budget(species, scene.phase),
-            _ => unreachable!("one config is loaded"),
+        let budget = steps.unwrap_or_else(|| match &config {
+            Config::Ppo(c) => c.budget(species, scene.phase),
+            Config::Sac(c) => c.budget(species, scene.phase),
         });
         budgets.insert(b.name.clone(), (budget as i64).into());
     }
-    if !resume {
-        check_init_from(dirs, &scene, init_from, opts)?;
-    }
-    std::fs::create_dir_all(run_dir)
-        .with_context(|| format!("cannot create {}", run_dir.display()))?;
-    if !resume {
+    let config_toml = if resume {
+        None
+    } else {
+        check_start(dirs, &scene, steps, init_from, opts)?;
         let mut resolved = toml::Table::new();
         let mut run = toml::Table::new();
         run.insert("run_id".into(), run_id.into());
@@ -150,18 +157,13 @@ pub fn train_scene(
             run.insert("init_from".into(), runs.into());
         }
         resolved.insert("run".into(), run.into());
-        if let Some(c) = &ppo {
-            resolved.insert("ppo".into(), toml::Value::try_from(c)?);
-        }
-        if let Some(c) = &sac {
-            resolved.insert("sac".into(), toml::Value::try_from(c)?);
-        }
+        match &config {
+            Config::Ppo(c) => resolved.insert("ppo".into(), toml::Value::try_from(c)?),
+            Config::Sac(c) => resolved.insert("sac".into(), toml::Value::try_from(c)?),
+        };
         resolved.insert("scene".into(), toml::Value::try_from(&scene)?);
-        deepfoids_io::write_atomic(
-            run_dir.join("config.toml"),
-            toml::to_string_pretty(&resolved)?.as_bytes(),
-        )?;
-    }
+        Some(toml::to_string_pretty(&resolved)?)
+    };
     eprintln!(
         "training {} on {} ({} phase) into {}",
         opts.algo.as_str(),
@@ -185,11 +187,11 @@ pub fn train_scene(
         },
         progress_sink: None,
         save: true,
+        config_toml,
     };
-    let outcome = match (ppo, sac) {
-        (Some(config), _) => deepfoids_ppo::train(config, args)?,
-        (_, Some(config)) => deepfoids_sac::train(config, args)?,
-        _ => unreachable!("one config is loaded"),
+    let outcome = match config {
+        Config::Ppo(config) => deepfoids_ppo::train(config, args)?,
+        Config::Sac(config) => deepfoids_sac::train(config, args)?,
     };
     print_training(&outcome);
     let summary = if opts.eval_seconds > 0.0 {

@@ -40,7 +40,7 @@
 //! from a reset environment reseeded with `seed + resets` (so its later
 //! experience, and its weights, differ from the uninterrupted run's); its
 //! logs are first cut back to the checkpoint ([`Logger::open`]). The caller
-//! holds the run folder's lock ([`open_run`]).
+//! holds the run folder's lock ([`run`]).
 
 use crate::backend::Backend;
 use crate::checkpoint::{
@@ -49,6 +49,7 @@ use crate::checkpoint::{
 use crate::error::{LearnError, Result};
 use crate::logger::{Logger, Scalars};
 use crate::onnx::Metadata;
+use crate::plan::{MemoryPlan, Part, UpdatePlan};
 use crate::progress::{Progress, ProgressMode};
 use crate::stats::EpisodeStats;
 use burn::prelude::Device;
@@ -75,6 +76,9 @@ pub struct RunArgs {
     pub progress_sink: Option<Box<dyn Write + Send>>,
     /// Write checkpoints and the final policy (off for benchmarks).
     pub save: bool,
+    /// The new run's `config.toml` (the resolved configuration), written
+    /// into it before it appears.
+    pub config_toml: Option<String>,
 }
 
 /// How often a run saves and reports, from the algorithm's config.
@@ -237,6 +241,17 @@ pub trait Trainer {
 
     fn settings(&self) -> RunSettings;
 
+    /// The memory a learner of `agents` agents needs at most, by part
+    /// ([`crate::plan`]), with the config fields that set each part.
+    fn memory_plan(&self, agents: usize) -> MemoryPlan;
+
+    /// When a learner of `agents` agents makes its first update, and how often after.
+    fn update_plan(&self, agents: usize) -> UpdatePlan;
+
+    /// The config fields that time the updates (for the message refusing a
+    /// budget that makes none), e.g. "buffer_size = 10240, time_horizon = 64".
+    fn update_fields(&self) -> String;
+
     /// A learner with fresh weights.
     fn new_learner(&self, ctx: &LearnerCtx<'_>) -> Result<Self::Learner>;
 
@@ -272,12 +287,14 @@ struct Behaviour<L> {
     stats: EpisodeStats,
 }
 
-/// The run folder of a training run. The caller holds its lock
-/// (`deepfoids_io::DirLock`, taken by the `train` and `pipeline`
-/// commands for the life of the process) and has checked `--init-from`
-/// ([`open_sources`]) before creating it.
-pub fn open_run(run_dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(run_dir).map_err(LearnError::io(run_dir))
+/// Where a new run is made before it is known to start: `<parent>/.<name>.<pid>.start`,
+/// renamed to the run folder once its learners exist (issue 25).
+pub fn staging_dir(run_dir: &Path) -> PathBuf {
+    let name = run_dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    run_dir.with_file_name(format!(".{name}.{}.start", std::process::id()))
 }
 
 /// The policies of `init_from` — each of `trainer`'s algorithm, this build's
@@ -311,55 +328,178 @@ pub fn open_sources<T: Trainer>(
     Ok(sources)
 }
 
-/// Train `trainer`'s algorithm on a scene. See the module documentation.
-pub fn run<T: Trainer>(trainer: &T, mut args: RunArgs) -> Result<TrainOutcome> {
-    open_run(&args.run_dir)?;
-    let resumed = resume_point(trainer, &args)?;
-    let sources: Vec<PolicySource> = if resumed.is_none() {
-        open_sources(trainer, &args.init_from, &args.scene)?
-    } else {
-        vec![]
+/// What a run of `trainer` on `scene` needs, checked before its folder is
+/// made (issue 25): every behaviour's budget (`steps`, else its species'
+/// budget for the phase) makes at least one update unless
+/// `allow_no_update`, and the environment with every learner fits into
+/// the machine's memory ([`deepfoids_env::memory::check`], as `load_scene`
+/// checks an environment). Returns the memory plan.
+pub fn check_run<T: Trainer>(
+    trainer: &T,
+    scene: &Scene,
+    steps: Option<u64>,
+    allow_no_update: bool,
+) -> Result<MemoryPlan> {
+    let mut plan = MemoryPlan {
+        parts: vec![Part {
+            name: "environment",
+            bytes: deepfoids_env::memory::env_bytes(scene),
+            fields: format!("{} fish of scene {}", scene.fish_count(), scene.id),
+        }],
     };
-    if let Some((dir, st)) = &resumed {
-        eprintln!(
-            "resumed from step {} (checkpoint {})",
-            st.agent_steps,
-            dir.display()
-        );
+    for b in &scene.behaviours {
+        let budget = steps.unwrap_or_else(|| trainer.budget(&b.species.name, scene.phase));
+        let updates = trainer.update_plan(b.count);
+        if updates.updates(budget) == 0 && !allow_no_update {
+            return Err(LearnError::NoUpdate {
+                behaviour: b.name.clone(),
+                agents: b.count,
+                budget,
+                first: updates.first,
+                fields: trainer.update_fields(),
+                config: trainer.config_name(),
+            });
+        }
+        plan.merge(trainer.memory_plan(b.count));
     }
-    let mut session = setup(trainer, &mut args, resumed, &sources)?;
+    let need = plan.total();
+    let largest = plan.largest().cloned();
+    deepfoids_env::memory::check(
+        &format!("training with {} ({})", trainer.config_name(), plan.describe()),
+        need,
+        &largest.map_or_else(String::new, |p| {
+            format!(
+                "the largest part is the {} ({}): lower those values in {}, use fewer fish, or free memory",
+                p.name,
+                p.fields,
+                trainer.config_name()
+            )
+        }),
+    )
+    .map_err(|error| LearnError::Memory {
+        config: trainer.config_name(),
+        error,
+    })?;
+    Ok(plan)
+}
+
+/// Train `trainer`'s algorithm on a scene. See the module documentation.
+///
+/// A new run is made under [`staging_dir`] (with `args.config_toml` as its
+/// `config.toml`) and appears under its name only once every learner exists
+/// — fresh, or with the `--init-from` weights loaded — so a start that fails
+/// leaves nothing that blocks a rerun. The caller holds the run folder's
+/// lock (`deepfoids_io::DirLock`) and has checked that it does not exist.
+/// `--resume` starts from the newest checkpoint whose files all load, and
+/// says so when it falls back to an older one.
+pub fn run<T: Trainer>(trainer: &T, mut args: RunArgs) -> Result<TrainOutcome> {
+    let mut session = if args.resume {
+        resume_session(trainer, &mut args)?
+    } else {
+        start_session(trainer, &mut args)?
+    };
     session.first_actions(args.seed)?;
     session.train(&args, &trainer.settings())?;
     session.finish(&args)
 }
 
-/// `--resume`: the newest checkpoint and its state, which must be of this
-/// algorithm, scene and architecture.
-fn resume_point<T: Trainer>(trainer: &T, args: &RunArgs) -> Result<Option<(PathBuf, RunState)>> {
-    if !args.resume {
-        return Ok(None);
-    }
-    let (hidden, layers) = trainer.architecture();
+/// A new run: built in the staging folder, then renamed into place.
+fn start_session<T: Trainer>(trainer: &T, args: &mut RunArgs) -> Result<Session<T::Learner>> {
+    let staging = staging_dir(&args.run_dir);
+    let _ = std::fs::remove_dir_all(&staging);
+    let built = (|| -> Result<(Env, Vec<Behaviour<T::Learner>>)> {
+        std::fs::create_dir_all(&staging).map_err(LearnError::io(&staging))?;
+        if let Some(text) = &args.config_toml {
+            let file = staging.join("config.toml");
+            deepfoids_io::write_atomic(&file, text.as_bytes()).map_err(LearnError::io(&file))?;
+        }
+        let sources = open_sources(trainer, &args.init_from, &args.scene)?;
+        let env = new_env(args, None);
+        let behaviours = learners(trainer, args, &env, None, &sources)?;
+        std::fs::rename(&staging, &args.run_dir).map_err(LearnError::io(&args.run_dir))?;
+        Ok((env, behaviours))
+    })();
+    let (env, behaviours) = built.inspect_err(|_| {
+        let _ = std::fs::remove_dir_all(&staging);
+    })?;
+    setup(trainer, args, None, env, behaviours)
+}
+
+/// `--resume`: the newest checkpoint whose state and files load, of this
+/// algorithm, scene and architecture; an unreadable one (a truncated or
+/// corrupt file) is passed over with a note for the one before it.
+fn resume_session<T: Trainer>(trainer: &T, args: &mut RunArgs) -> Result<Session<T::Learner>> {
     let resume_error = |reason: String| LearnError::Resume {
         run: args.run_dir.clone(),
         reason,
     };
-    let (_, dir) = checkpoint::checkpoints(&args.run_dir)
-        .pop()
-        .ok_or_else(|| resume_error("it has no checkpoint to resume from".into()))?;
+    let mut all = checkpoint::checkpoints(&args.run_dir);
+    if all.is_empty() {
+        return Err(resume_error("it has no checkpoint to resume from".into()));
+    }
+    let mut passed = Vec::new();
+    while let Some((_, dir)) = all.pop() {
+        match resume_from(trainer, args, &dir) {
+            Ok((state, env, behaviours)) => {
+                if !passed.is_empty() {
+                    eprintln!(
+                        "note: resuming from the older checkpoint {}: {}",
+                        dir.display(),
+                        passed.join("; ")
+                    );
+                }
+                eprintln!(
+                    "resumed from step {} (checkpoint {})",
+                    state.agent_steps,
+                    dir.display()
+                );
+                return setup(trainer, args, Some(state), env, behaviours);
+            }
+            Err(
+                e
+                @ (LearnError::Io { .. } | LearnError::Corrupt { .. } | LearnError::Record { .. }),
+            ) => {
+                passed.push(format!("{} is unreadable ({e})", dir.display()));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Err(resume_error(format!(
+        "no checkpoint loads: {}",
+        passed.join("; ")
+    )))
+}
+
+/// The state and learners of checkpoint `dir`, which must be of this
+/// algorithm, scene and architecture.
+#[allow(clippy::type_complexity)]
+fn resume_from<T: Trainer>(
+    trainer: &T,
+    args: &RunArgs,
+    dir: &Path,
+) -> Result<(RunState, Env, Vec<Behaviour<T::Learner>>)> {
+    let (hidden, layers) = trainer.architecture();
     let st = RunState::load_policy(
-        &dir,
+        dir,
         trainer.algorithm(),
         "--resume continues the run's own algorithm",
     )?;
     if st.scene != args.scene.id {
-        return Err(resume_error(format!(
-            "the run trained on {}, not {}",
-            st.scene, args.scene.id
-        )));
+        return Err(LearnError::Resume {
+            run: args.run_dir.clone(),
+            reason: format!("the run trained on {}, not {}", st.scene, args.scene.id),
+        });
     }
-    st.check_architecture(&dir, hidden, layers, trainer.config_name())?;
-    Ok(Some((dir, st)))
+    st.check_architecture(dir, hidden, layers, trainer.config_name())?;
+    let env = new_env(args, Some(&st));
+    let behaviours = learners(trainer, args, &env, Some((dir, &st)), &[])?;
+    Ok((st, env, behaviours))
+}
+
+/// The environment, reseeded with `seed + resets` on resume.
+fn new_env(args: &RunArgs, resumed: Option<&RunState>) -> Env {
+    let resets = resumed.map_or(0, |s| s.resets + 1);
+    Env::new(args.scene.clone(), args.seed.wrapping_add(resets))
 }
 
 /// Everything the loop changes, from [`setup`] to [`Session::finish`].
@@ -383,28 +523,25 @@ struct Session<L> {
     started: Instant,
 }
 
-/// The environment (reseeded on resume), one learner per behaviour (fresh,
-/// resumed or transferred), the logger, the run state and the progress.
+/// The session of a run whose environment and learners exist: the logger
+/// (cut back to the checkpoint on resume), the run state and the progress.
 fn setup<T: Trainer>(
     trainer: &T,
     args: &mut RunArgs,
-    resumed: Option<(PathBuf, RunState)>,
-    sources: &[PolicySource],
+    resumed: Option<RunState>,
+    env: Env,
+    behaviours: Vec<Behaviour<T::Learner>>,
 ) -> Result<Session<T::Learner>> {
     let (hidden, layers) = trainer.architecture();
     let settings = trainer.settings();
-    // ---- Environment -------------------------------------------------------------
-    let resets = resumed.as_ref().map_or(0, |s| s.1.resets + 1);
-    let env = Env::new(args.scene.clone(), args.seed.wrapping_add(resets));
-    let tick = resumed.as_ref().map_or(0, |s| s.1.ticks);
-    // ---- Learners: one per behaviour ---------------------------------------------
-    let behaviours = learners(trainer, args, &env, resumed.as_ref(), sources)?;
+    let resets = resumed.as_ref().map_or(0, |s| s.resets + 1);
+    let tick = resumed.as_ref().map_or(0, |s| s.ticks);
     let names: Vec<String> = behaviours.iter().map(|b| b.name.clone()).collect();
     let resumed_at: Option<Vec<u64>> = resumed
         .as_ref()
         .map(|_| behaviours.iter().map(|b| b.agent_steps).collect());
     let logger = Logger::open(&args.run_dir, &names, resumed_at.as_deref())?;
-    let mut state = resumed.map(|s| s.1).unwrap_or_else(|| RunState {
+    let mut state = resumed.unwrap_or_else(|| RunState {
         algo: trainer.algorithm(),
         layout: crate::body::ENCODER_LAYOUT,
         run_id: args.run_id.clone(),
@@ -460,7 +597,7 @@ fn learners<T: Trainer>(
     trainer: &T,
     args: &RunArgs,
     env: &Env,
-    resumed: Option<&(PathBuf, RunState)>,
+    resumed: Option<(&Path, &RunState)>,
     sources: &[PolicySource],
 ) -> Result<Vec<Behaviour<T::Learner>>> {
     let phase = args.scene.phase;

@@ -78,6 +78,24 @@ pub enum LearnError {
         path: PathBuf,
         reason: String,
     },
+    /// A run that needs more memory than the machine can give.
+    #[error("{config}: {error}")]
+    Memory {
+        config: &'static str,
+        error: deepfoids_env::memory::MemoryError,
+    },
+    /// A budget too small for a single update (`--allow-no-update` accepts it).
+    #[error(
+        "behaviour {behaviour} ({agents} agents): a budget of {budget} agent steps makes no update; the first comes after {first} agent steps ({fields} in {config}); raise --steps to at least {first}, lower those values, or pass --allow-no-update to run it anyway"
+    )]
+    NoUpdate {
+        behaviour: String,
+        agents: usize,
+        budget: u64,
+        first: u64,
+        fields: String,
+        config: &'static str,
+    },
     #[error(transparent)]
     Config(#[from] deepfoids_env::ConfigError),
     #[error("environment step: {0}")]

@@ -16,6 +16,7 @@ pub mod frames;
 pub mod kernels;
 pub mod logger;
 pub mod onnx;
+pub mod plan;
 pub mod policy;
 pub mod progress;
 pub mod stats;

@@ -129,7 +129,51 @@ impl PpoConfig {
         let path = dirs.root.join("train").join("ppo.toml");
         let cfg: PpoConfig = read_toml(&path)?;
         cfg.validate(&path)?;
+        cfg.check_sizes(&path)?;
         Ok(cfg)
+    }
+
+    /// The sizes' hard bounds ([`deepfoids_learn::plan`]); the memory they
+    /// need together is checked before a run starts (`driver::check_run`).
+    pub fn check_sizes(&self, path: &std::path::Path) -> Result<(), ConfigError> {
+        use deepfoids_learn::plan::*;
+        let sizes = [
+            ("hidden", self.hidden, 1, MAX_HIDDEN, "SPEC §8: 128"),
+            ("layers", self.layers, 1, MAX_LAYERS, "SPEC §8: 4"),
+            ("epochs", self.epochs, 1, MAX_EPOCHS, "Table 4.4: 3"),
+            (
+                "time_horizon",
+                self.time_horizon,
+                1,
+                MAX_TIME_HORIZON,
+                "Table 4.4: 64",
+            ),
+            (
+                "buffer_size",
+                self.buffer_size,
+                1,
+                MAX_BUFFER,
+                "Table 4.4: 10240",
+            ),
+            (
+                "batch_size",
+                self.batch_size,
+                1,
+                self.buffer_size as u64,
+                "at most buffer_size; Table 4.4: 1024",
+            ),
+            (
+                "keep_checkpoints",
+                self.keep_checkpoints,
+                1,
+                MAX_KEEP_CHECKPOINTS,
+                "5",
+            ),
+        ];
+        for (field, value, lo, hi, usual) in sizes {
+            check_size(path, field, value as u64, lo, hi, usual)?;
+        }
+        Ok(())
     }
 
     fn validate(&self, path: &std::path::Path) -> Result<(), ConfigError> {

@@ -52,12 +52,15 @@ use deepfoids_learn::checkpoint::{
     BehaviourState, behaviour_file, load_json, load_module, save_json, save_module,
 };
 use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, RunSettings, StepCtx, Trainer};
+use deepfoids_learn::frames::FRAME_BYTES;
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::logger::Scalars;
 use deepfoids_learn::onnx::Metadata;
+use deepfoids_learn::plan::{self, MemoryPlan, Part, UpdatePlan};
 use deepfoids_learn::tensor::{ForceInit, ParamIds, clip_grad_norm, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, BodyConfig, Grids, LearnError, Result};
+use deepfoids_sensors::STACK;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::Arc;
@@ -66,6 +69,21 @@ use std::time::Instant;
 /// The PPO algorithm with its hyperparameters.
 pub struct Ppo {
     pub config: PpoConfig,
+}
+
+/// The longest a trajectory of `n` agents gets: `time_horizon`, or the
+/// synchronous scheme's cut every `ceil(buffer_size / n)` decisions.
+fn trajectory_steps(cfg: &PpoConfig, n: usize) -> usize {
+    match cfg.rollout {
+        RolloutScheme::MlAgents => cfg.time_horizon,
+        RolloutScheme::Synchronous => cfg.time_horizon.min(cfg.buffer_size.div_ceil(n.max(1))),
+    }
+}
+
+impl Ppo {
+    fn trajectory_steps(&self, n: usize) -> usize {
+        trajectory_steps(&self.config, n)
+    }
 }
 
 /// PPO's own state of a behaviour, saved as `<behaviour>.ppo.json` in checkpoints.
@@ -140,6 +158,87 @@ impl Trainer for Ppo {
             checkpoint_every: self.config.checkpoint_every,
             keep_checkpoints: self.config.keep_checkpoints,
             progress_every: self.config.progress_every,
+        }
+    }
+
+    /// Networks: actor and critic bodies, the mean head `[hidden → 3]`, the
+    /// log-std `[3]` and the value head `[hidden → 1]`. Experience: at most
+    /// `buffer_size` closed transitions plus one join and the open
+    /// trajectories (`2·n·steps` more), each [`FRAME_BYTES`] + 61 bytes, and
+    /// each trajectory's two older frames. Update: a minibatch through both
+    /// bodies ([`plan::update_bytes`]); acting: each agent's outputs and scratch.
+    fn memory_plan(&self, agents: usize) -> MemoryPlan {
+        let c = &self.config;
+        let (h, l, n) = (c.hidden as u64, c.layers as u64, agents as u64);
+        let params = 2 * plan::body_params(h, l, 0) + (h * 3 + 3) + 3 + (h + 1);
+        let steps = self.trajectory_steps(agents) as u64;
+        let transitions = (c.buffer_size as u64).saturating_add(2 * n * steps);
+        let per_transition = (FRAME_BYTES + 4 * (VECTOR_OBS + ACTIONS + 6) + 1) as u64;
+        let experience = transitions
+            .saturating_mul(per_transition)
+            .saturating_add(4 * n * (STACK as u64 - 1) * FRAME_BYTES as u64);
+        let batch = c.batch_size.min(c.buffer_size) as u64;
+        MemoryPlan {
+            parts: vec![
+                Part {
+                    name: "networks",
+                    bytes: params.saturating_mul(plan::TRAIN_BYTES_PER_PARAM)
+                        + plan::LEARNER_FIXED_BYTES,
+                    fields: format!("hidden = {}, layers = {}", c.hidden, c.layers),
+                },
+                Part {
+                    name: "experience",
+                    bytes: experience,
+                    fields: format!(
+                        "buffer_size = {}, time_horizon = {}, {agents} agents",
+                        c.buffer_size, c.time_horizon
+                    ),
+                },
+                Part {
+                    name: "update",
+                    bytes: plan::update_bytes(batch, 2, h, l)
+                        .saturating_add(n.saturating_mul(plan::ACTING_BYTES_PER_AGENT)),
+                    fields: format!(
+                        "batch_size = {}, hidden = {}, layers = {}",
+                        c.batch_size, c.hidden, c.layers
+                    ),
+                },
+            ],
+        }
+    }
+
+    /// ML-Agents' rollout: `n` trajectories join every `time_horizon`
+    /// decisions, and an update needs `buffer_size` transitions; the
+    /// synchronous one updates every `ceil(buffer_size / n)` decisions. The
+    /// update comes at the decision that completes the buffer if the
+    /// behaviour is still training then: the budget must exceed the
+    /// transitions by one.
+    fn update_plan(&self, agents: usize) -> UpdatePlan {
+        let c = &self.config;
+        let n = agents.max(1) as u64;
+        let every = match c.rollout {
+            RolloutScheme::MlAgents => {
+                let join = n * c.time_horizon as u64;
+                (c.buffer_size as u64).div_ceil(join) * join
+            }
+            RolloutScheme::Synchronous => (c.buffer_size as u64).div_ceil(n) * n,
+        };
+        UpdatePlan {
+            first: every + 1,
+            every,
+        }
+    }
+
+    fn update_fields(&self) -> String {
+        let c = &self.config;
+        match c.rollout {
+            RolloutScheme::MlAgents => format!(
+                "buffer_size = {}, time_horizon = {}",
+                c.buffer_size, c.time_horizon
+            ),
+            RolloutScheme::Synchronous => {
+                format!("buffer_size = {}, rollout = \"synchronous\"", c.buffer_size)
+            }
         }
     }
 
@@ -244,12 +343,7 @@ impl PpoLearner {
         state: PpoState,
     ) -> Self {
         let n = ctx.info.count;
-        // The longest a trajectory gets: time_horizon, or the synchronous
-        // scheme's cut every ceil(buffer_size / agents) decisions.
-        let steps = match cfg.rollout {
-            RolloutScheme::MlAgents => cfg.time_horizon,
-            RolloutScheme::Synchronous => cfg.time_horizon.min(cfg.buffer_size.div_ceil(n)),
-        };
+        let steps = trajectory_steps(&cfg, n);
         Self {
             net: model.infer_net(),
             log_std: model.log_std_values(),

@@ -57,6 +57,7 @@ fn args(
         progress: ProgressMode::Quiet,
         progress_sink: None,
         save: true,
+        config_toml: None,
     }
 }
 

@@ -102,7 +102,43 @@ impl SacConfig {
         let path = dirs.root.join("train").join("sac.toml");
         let cfg: SacConfig = read_toml(&path)?;
         cfg.validate(&path)?;
+        cfg.check_sizes(&path)?;
         Ok(cfg)
+    }
+
+    /// The sizes' hard bounds ([`deepfoids_learn::plan`]); the memory they
+    /// need together is checked before a run starts (`driver::check_run`).
+    pub fn check_sizes(&self, path: &std::path::Path) -> Result<(), ConfigError> {
+        use deepfoids_learn::plan::*;
+        let sizes = [
+            ("hidden", self.hidden, 1, MAX_HIDDEN, "SPEC §8: 128"),
+            ("layers", self.layers, 1, MAX_LAYERS, "SPEC §8: 4"),
+            (
+                "buffer_size",
+                self.buffer_size,
+                1,
+                MAX_BUFFER,
+                "Table 4.5: 102400",
+            ),
+            (
+                "batch_size",
+                self.batch_size,
+                1,
+                self.buffer_size as u64,
+                "at most buffer_size; Table 4.5: 1024",
+            ),
+            (
+                "keep_checkpoints",
+                self.keep_checkpoints,
+                1,
+                MAX_KEEP_CHECKPOINTS,
+                "2",
+            ),
+        ];
+        for (field, value, lo, hi, usual) in sizes {
+            check_size(path, field, value as u64, lo, hi, usual)?;
+        }
+        Ok(())
     }
 
     pub fn validate(&self, path: &std::path::Path) -> Result<(), ConfigError> {

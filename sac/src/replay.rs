@@ -94,6 +94,15 @@ pub struct Replay {
 }
 
 impl Replay {
+    /// The bytes [`Replay::new`] allocates for `capacity` transitions of
+    /// `agents` agents (what [`bytes`](Self::bytes) will say), saturating.
+    pub fn bytes_for(capacity: usize, agents: usize) -> u64 {
+        let rows = (capacity.div_ceil(agents.max(1)) as u64).saturating_add(3);
+        let slots = rows.saturating_mul(agents as u64);
+        let per_slot = (FRAME_BYTES + 4 * (VECTOR_OBS + ACTIONS + 1) + 2) as u64;
+        slots.saturating_mul(per_slot).saturating_add(2 * rows)
+    }
+
     /// A buffer holding at least `capacity` complete transitions of `agents` agents.
     pub fn new(capacity: usize, agents: usize) -> Self {
         let rows = capacity.div_ceil(agents.max(1)) + 3;

@@ -56,6 +56,7 @@ use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::{InferNet, TrunkInputs};
 use deepfoids_learn::logger::Scalars;
 use deepfoids_learn::onnx::Metadata;
+use deepfoids_learn::plan::{self, MemoryPlan, Part, UpdatePlan};
 use deepfoids_learn::tensor::{ForceInit, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, Grids, LearnError, Result};
 use serde::{Deserialize, Serialize};
@@ -187,6 +188,67 @@ impl Trainer for Sac {
             keep_checkpoints: self.config.keep_checkpoints,
             progress_every: self.config.progress_every,
         }
+    }
+
+    /// Networks: the actor (body, mean and log-std heads `[hidden → 3]`),
+    /// the twin critics and their targets (bodies taking the action, heads
+    /// `[hidden → 1]`). Experience: the replay buffer, exactly
+    /// ([`Replay::bytes_for`]), and a sampled minibatch. Update: a minibatch
+    /// through six bodies (actor, twin critics on `s`, the actor and the
+    /// targets on `s'`); acting: each agent's outputs and scratch.
+    fn memory_plan(&self, agents: usize) -> MemoryPlan {
+        let c = &self.config;
+        let (h, l, n) = (c.hidden as u64, c.layers as u64, agents as u64);
+        let actor = plan::body_params(h, l, 0) + 2 * (h * 3 + 3);
+        let critic = 2 * (plan::body_params(h, l, ACTIONS as u64) + h + 1);
+        let params = actor + 2 * critic;
+        let batch = c.batch_size as u64;
+        MemoryPlan {
+            parts: vec![
+                Part {
+                    name: "networks",
+                    bytes: params.saturating_mul(plan::TRAIN_BYTES_PER_PARAM)
+                        + plan::LEARNER_FIXED_BYTES,
+                    fields: format!("hidden = {}, layers = {}", c.hidden, c.layers),
+                },
+                Part {
+                    name: "experience",
+                    bytes: Replay::bytes_for(c.buffer_size, agents)
+                        .saturating_add(batch.saturating_mul(2 * 4 * 1024)),
+                    fields: format!("buffer_size = {}, {agents} agents", c.buffer_size),
+                },
+                Part {
+                    name: "update",
+                    bytes: plan::update_bytes(batch, 6, h, l)
+                        .saturating_add(n.saturating_mul(plan::ACTING_BYTES_PER_AGENT)),
+                    fields: format!(
+                        "batch_size = {}, hidden = {}, layers = {}",
+                        c.batch_size, c.hidden, c.layers
+                    ),
+                },
+            ],
+        }
+    }
+
+    /// The first update once `learning_starts + steps_per_update` agent
+    /// steps are in (counted at decisions, `n` at a time), then one every
+    /// `steps_per_update`, if the behaviour is still training at that
+    /// decision (the budget exceeds those steps by one).
+    fn update_plan(&self, agents: usize) -> UpdatePlan {
+        let c = &self.config;
+        let n = agents.max(1) as u64;
+        let first = c.learning_starts + c.steps_per_update.ceil() as u64;
+        UpdatePlan {
+            first: first.div_ceil(n) * n + 1,
+            every: c.steps_per_update.ceil() as u64,
+        }
+    }
+
+    fn update_fields(&self) -> String {
+        format!(
+            "learning_starts = {}, steps_per_update = {}",
+            self.config.learning_starts, self.config.steps_per_update
+        )
     }
 
     fn new_learner(&self, ctx: &LearnerCtx<'_>) -> Result<SacLearner> {

@@ -60,6 +60,7 @@ fn run_in(
             progress: ProgressMode::Quiet,
             progress_sink: None,
             save: true,
+            config_toml: None,
         },
     )
     .unwrap()

@@ -6,8 +6,10 @@ use anyhow::Result;
 use clap::{Args, Subcommand};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy};
-use deepfoids_experiments::{load_actor, load_scene};
+use deepfoids_experiments::{bounds, load_actor, load_scene};
 use deepfoids_learn::Algorithm;
+use deepfoids_learn::driver::Trainer;
+use deepfoids_learn::plan::UpdatePlan;
 use deepfoids_learn::{ProgressMode, RunArgs};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -44,9 +46,10 @@ pub struct BenchTrainArgs {
     /// Scene id or path
     #[arg(long, default_value = "seabream_default", value_name = "ID|PATH")]
     pub scene: String,
-    /// Agent decisions to train, per behaviour
-    #[arg(long, default_value_t = 30_000)]
-    pub steps: u64,
+    /// Agent decisions to train, per behaviour [default: enough for 3 updates
+    /// of every behaviour, and at least 30,000]
+    #[arg(long)]
+    pub steps: Option<u64>,
     /// Training algorithm
     #[arg(long, default_value = "ppo", value_parser = algorithm())]
     pub algo: Algorithm,
@@ -139,22 +142,7 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
     let _ = std::fs::remove_dir_all(&tmp);
     let id = scene.id.clone();
     let fish = scene.fish_count();
-    let run = RunArgs {
-        scene,
-        run_dir: tmp.clone(),
-        run_id: "bench".into(),
-        seed: args.seed,
-        steps: Some(args.steps),
-        resume: false,
-        init_from: vec![],
-        backend: args.backend,
-        progress: ProgressMode::Quiet,
-        progress_sink: None,
-        save: false,
-    };
-    let rss_before = resident_set_bytes();
-    let cpu_before = cpu_seconds();
-    let out = match args.algo {
+    let trainer = match args.algo {
         Algorithm::Ppo => {
             let mut config = deepfoids_ppo::PpoConfig::load(dirs)?;
             if let Some(r) = &args.rollout {
@@ -166,9 +154,53 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
                     }
                 };
             }
-            deepfoids_ppo::train(config, run)
+            Either::Ppo(deepfoids_ppo::Ppo { config })
         }
-        Algorithm::Sac => deepfoids_sac::train(deepfoids_sac::SacConfig::load(dirs)?, run),
+        Algorithm::Sac => Either::Sac(deepfoids_sac::Sac {
+            config: deepfoids_sac::SacConfig::load(dirs)?,
+        }),
+    };
+    // Every behaviour's update plan: the default budget makes 3 updates of each.
+    let plans: Vec<(String, UpdatePlan)> = scene
+        .behaviours
+        .iter()
+        .map(|b| (b.name.clone(), trainer.update_plan(b.count)))
+        .collect();
+    let steps = args.steps.unwrap_or_else(|| {
+        plans
+            .iter()
+            .map(|(_, p)| p.budget_for(BENCH_UPDATES))
+            .fold(30_000, u64::max)
+    });
+    bounds::train_steps("--steps", steps)?;
+    let expected: u64 = plans.iter().map(|(_, p)| p.updates(steps)).sum();
+    for (name, p) in &plans {
+        if p.updates(steps) == 0 {
+            eprintln!(
+                "warning: {steps} agent steps make no update of {name} (its first comes after {}): the rate below is collection only, not training; drop --steps for a budget with {BENCH_UPDATES} updates",
+                p.first
+            );
+        }
+    }
+    let run = RunArgs {
+        scene,
+        run_dir: tmp.clone(),
+        run_id: "bench".into(),
+        seed: args.seed,
+        steps: Some(steps),
+        resume: false,
+        init_from: vec![],
+        backend: args.backend,
+        progress: ProgressMode::Quiet,
+        progress_sink: None,
+        save: false,
+        config_toml: None,
+    };
+    let rss_before = resident_set_bytes();
+    let cpu_before = cpu_seconds();
+    let out = match trainer {
+        Either::Ppo(t) => deepfoids_ppo::train(t.config, run),
+        Either::Sac(t) => deepfoids_sac::train(t.config, run),
     };
     let cpu = cpu_seconds().zip(cpu_before).map(|(a, b)| a - b);
     let rss_after = resident_set_bytes();
@@ -204,6 +236,10 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
         100.0 * secs(t.update) / wall,
         100.0 * (wall - secs(t.env) - secs(t.inference) - secs(t.update)) / wall
     );
+    println!(
+        "updates: {} (the budget plans {expected}; a benchmark without updates measures collection only)",
+        out.updates
+    );
     if out.updates > 0 {
         let parts: Vec<String> = t
             .parts
@@ -211,8 +247,7 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
             .map(|(k, v)| format!("{k} {:.0} %", 100.0 * secs(*v) / secs(t.update).max(1e-9)))
             .collect();
         println!(
-            "updates: {}, {:.3} s each; within them: {}",
-            out.updates,
+            "each update {:.3} s; within them: {}",
             secs(t.update) / out.updates as f64,
             parts.join(", ")
         );
@@ -244,6 +279,24 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Updates of every behaviour in `bench train`'s default budget.
+const BENCH_UPDATES: u64 = 3;
+
+/// The trainer of either algorithm, for its update plan.
+enum Either {
+    Ppo(deepfoids_ppo::Ppo),
+    Sac(deepfoids_sac::Sac),
+}
+
+impl Either {
+    fn update_plan(&self, agents: usize) -> UpdatePlan {
+        match self {
+            Either::Ppo(t) => t.update_plan(agents),
+            Either::Sac(t) => t.update_plan(agents),
+        }
+    }
 }
 
 /// The process's resident set size (Linux `/proc/self/status`, `VmRSS`).

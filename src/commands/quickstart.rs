@@ -62,6 +62,7 @@ pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
             backend: Backend::Flex,
             eval_seconds: q.eval_seconds,
             quiet: false,
+            allow_no_update: false,
         },
     };
     let t = super::train::run(dirs, &args)?;

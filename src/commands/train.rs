@@ -4,7 +4,7 @@ use crate::args::{TrainOptionArgs, parse_phase};
 use anyhow::Result;
 use clap::Args;
 use deepfoids_env::{ConfigDirs, Phase};
-use deepfoids_experiments::training::{Trained, check_init_from, prepare_run_dir, train_scene};
+use deepfoids_experiments::training::{Trained, check_start, prepare_run_dir, train_scene};
 use deepfoids_experiments::{bounds, load_scene, lock_dir, pretrained};
 use std::path::PathBuf;
 
@@ -56,7 +56,7 @@ pub fn run(dirs: &ConfigDirs, args: &TrainArgs) -> Result<Trained> {
         bounds::train_steps("--steps", steps)?;
     }
     if !args.resume {
-        check_init_from(dirs, &scene, &args.init_from, &opts)?;
+        check_start(dirs, &scene, args.steps, &args.init_from, &opts)?;
     }
     // One process per run folder, for the life of this one (issue 13 item 2).
     let _lock = lock_dir(&run_dir).map_err(|e| {
