@@ -1,6 +1,7 @@
 //! `deepfoids bench env`: agent-decisions per second with random actions,
 //! sensor included, warm-up excluded; and where the time goes.
 
+use crate::args::whole;
 use crate::args::{algorithm, parse_backend};
 use anyhow::Result;
 use clap::{Args, Subcommand};
@@ -32,10 +33,10 @@ pub struct BenchPolicyArgs {
     #[arg(long, value_name = "RUN")]
     pub run: PathBuf,
     /// Agents per forward pass
-    #[arg(long, default_value_t = 1000)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 1000)]
     pub agents: usize,
     /// Timed repetitions
-    #[arg(long, default_value_t = 10)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 10)]
     pub reps: usize,
 }
 
@@ -45,7 +46,7 @@ pub struct BenchTrainArgs {
     #[arg(long, default_value = "seabream_default", value_name = "ID|PATH")]
     pub scene: String,
     /// Agent decisions to train, per behaviour
-    #[arg(long, default_value_t = 30_000)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 30_000)]
     pub steps: u64,
     /// Training algorithm
     #[arg(long, default_value = "ppo", value_parser = algorithm())]
@@ -56,7 +57,7 @@ pub struct BenchTrainArgs {
     /// PPO's rollout: `ml-agents` or `synchronous` [default: configs/train/ppo.toml's]
     #[arg(long)]
     pub rollout: Option<String>,
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
 }
 
@@ -71,7 +72,7 @@ pub struct BenchEnvArgs {
     /// Simulated seconds of warm-up, not timed
     #[arg(long, default_value_t = 2.0)]
     pub warmup: f64,
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
 }
 
