@@ -8,7 +8,10 @@ use deepfoids_experiments::PolicyOptions;
 use deepfoids_experiments::evaluate::RunArgs;
 use deepfoids_experiments::training::TrainOptions;
 use deepfoids_learn::{Algorithm, Backend};
+use std::fmt::Display;
+use std::num::{IntErrorKind, ParseIntError};
 use std::path::PathBuf;
+use std::str::FromStr;
 
 /// Options shared by every command that simulates.
 #[derive(Args, Debug, Clone)]
@@ -17,7 +20,7 @@ pub struct SceneArgs {
     #[arg(long, value_name = "ID|PATH")]
     pub scene: String,
     /// Random seed: fish traits, placement, respawns, chases and random actions
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
     /// Reward weights of this phase
     #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
@@ -28,7 +31,7 @@ pub struct SceneArgs {
 #[derive(Args, Debug, Clone)]
 pub struct PolicyArgs {
     /// With a run folder: load this checkpoint step instead of the final policy
-    #[arg(long, value_name = "STEP")]
+    #[arg(value_parser = whole::<u64>, long, value_name = "STEP")]
     pub checkpoint: Option<u64>,
     /// Act with the policy's mean (clipped) instead of sampling from it; sampled
     /// actions are the default, as Unity ML-Agents 1.x inference (the thesis') did
@@ -55,7 +58,7 @@ pub struct TrainOptionArgs {
     #[arg(long, default_value = "ppo", value_parser = algorithm())]
     pub algo: Algorithm,
     /// Random seed (weights, exploration, environment)
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
     /// Folder of the runs
     #[arg(long, default_value = "runs", value_name = "DIR")]
@@ -129,6 +132,38 @@ pub fn from_rerun(run: &RunArgs) -> anyhow::Result<(SceneArgs, PolicyArgs)> {
     ))
 }
 
+/// A whole-number option value. A negative one (the command line lets it
+/// through as a value, see `cli::negative_numbers`) is refused with the
+/// range — "must be ≥ 0, got -5" — rather than clap's "unexpected argument"
+/// or "invalid digit found in string".
+pub fn whole<T>(s: &str) -> Result<T, String>
+where
+    T: FromStr<Err = ParseIntError> + Bounded,
+{
+    s.trim().parse::<T>().map_err(|e| match e.kind() {
+        _ if s.trim().parse::<f64>().is_ok_and(|v| v < 0.0) => {
+            format!("must be ≥ 0, got {s}")
+        }
+        IntErrorKind::PosOverflow => format!("must be at most {}, got {s}", T::MAX),
+        _ => format!("must be a whole number from 0 to {}, got `{s}`", T::MAX),
+    })
+}
+
+/// The largest value of an unsigned integer type, for [`whole`]'s messages.
+pub trait Bounded: Display {
+    const MAX: Self;
+}
+
+impl Bounded for u32 {
+    const MAX: Self = u32::MAX;
+}
+impl Bounded for u64 {
+    const MAX: Self = u64::MAX;
+}
+impl Bounded for usize {
+    const MAX: Self = usize::MAX;
+}
+
 pub fn parse_phase(s: &str) -> Result<Phase, String> {
     s.parse()
 }
@@ -141,4 +176,24 @@ pub fn parse_backend(s: &str) -> Result<Backend, String> {
 pub fn algorithm() -> impl TypedValueParser<Value = Algorithm> {
     PossibleValuesParser::new(Algorithm::ALL.map(|a| a.as_str()))
         .try_map(|s| s.parse::<Algorithm>())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_numbers_say_their_range() {
+        assert_eq!(whole::<u64>("7"), Ok(7));
+        assert_eq!(whole::<u64>("-5"), Err("must be ≥ 0, got -5".into()));
+        assert_eq!(whole::<u32>("-0.5"), Err("must be ≥ 0, got -0.5".into()));
+        assert_eq!(
+            whole::<u32>("5000000000"),
+            Err("must be at most 4294967295, got 5000000000".into())
+        );
+        assert_eq!(
+            whole::<u32>("1.5"),
+            Err("must be a whole number from 0 to 4294967295, got `1.5`".into())
+        );
+    }
 }

@@ -7,7 +7,7 @@ use crate::commands::{
     simulate::SimulateArgs, train::TrainArgs,
 };
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use deepfoids_env::ConfigDirs;
 use std::path::PathBuf;
 
@@ -82,9 +82,19 @@ fn parse_threads(s: &str) -> Result<usize, String> {
     }
 }
 
+/// Let negative numbers through as option values (`--seconds -1`), so that
+/// the option's check refuses them with its range ("must be ≥ 0") instead of
+/// clap reading `-1` as an unknown flag. Set on every (sub)command: clap's
+/// setting does not reach subcommands by itself.
+pub fn negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.allow_negative_numbers(true)
+        .mut_subcommands(negative_numbers)
+}
+
 /// Parse the command line and run the command.
 pub fn run() -> Result<()> {
-    let cli = Cli::parse();
+    let matches = negative_numbers(Cli::command()).get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)

@@ -186,7 +186,8 @@ fn detector_trains_and_counts_end_to_end() {
         data.join("data.yaml").to_str().unwrap(),
     ]);
     assert!(
-        !o.status.success() && text(&o).contains("not a loadable ONNX model"),
+        !o.status.success()
+            && text(&o).contains("data.yaml is not an ONNX model (it is a text file"),
         "{}",
         text(&o)
     );

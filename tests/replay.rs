@@ -269,7 +269,7 @@ fn replay_explains_what_it_needs() {
     let o = deepfoids(&["replay", "--scene", "seabream_default", "--fps", "0"]);
     assert!(!o.status.success());
     assert!(
-        text(&o).contains("frames per second must be a positive number, got 0"),
+        text(&o).contains("--fps must be above 0 and at most 1000 frames/s, got 0"),
         "{}",
         text(&o)
     );

@@ -671,3 +671,275 @@ fn a_pipeline_in_use_is_refused() {
     assert_refused(&o, "--pretrain-steps 0 would train nothing");
     let _ = std::fs::remove_dir_all(&runs);
 }
+
+/// The names in folder `dir`, sorted (empty when it does not exist).
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|rd| {
+            rd.map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+/// Issue 25: negative numbers were "unexpected argument '-1'" from clap; they
+/// reach the option's check and get its range.
+#[test]
+fn negative_numbers_get_the_range_not_a_parse_error() {
+    let out = temp("negative");
+    let o = out.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &[
+                "eval",
+                "--scene",
+                "seabream_default",
+                "--seconds",
+                "-1",
+                "--out",
+                o,
+            ],
+            "--seconds must be above 0 and at most 86400 s (one simulated day), got -1",
+        ),
+        (
+            &[
+                "eval",
+                "--scene",
+                "seabream_default",
+                "--warmup",
+                "-1",
+                "--out",
+                o,
+            ],
+            "--warmup must be ≥ 0 and at most 86400 s, got -1",
+        ),
+        (
+            &[
+                "eval",
+                "--scene",
+                "seabream_default",
+                "--seed",
+                "-1",
+                "--out",
+                o,
+            ],
+            "'--seed <SEED>': must be ≥ 0, got -1",
+        ),
+        (
+            &["train", "--scene", "seabream_default", "--steps", "-5"],
+            "'--steps <STEPS>': must be ≥ 0, got -5",
+        ),
+        (
+            &["replay", "--scene", "seabream_default", "--fps", "-2"],
+            "--fps must be above 0 and at most 1000 frames/s, got -2",
+        ),
+        (
+            &[
+                "render",
+                "--scene",
+                "seabream_default",
+                "--frames",
+                "-3",
+                "--out",
+                o,
+            ],
+            "'--frames <FRAMES>': must be ≥ 0, got -3",
+        ),
+    ];
+    for (args, want) in cases {
+        let r = deepfoids(args);
+        assert_refused(&r, want);
+        assert!(!text(&r).contains("unexpected argument"), "{}", text(&r));
+    }
+    assert!(!out.exists(), "nothing is written");
+}
+
+/// Issue 25: `replay --out` an existing folder simulated, then failed and
+/// left `.NAME.PID.tmp`; `--gif-size 1000000` simulated and wrote the page
+/// before failing. Both are refused before anything runs, leaving nothing.
+#[test]
+fn replay_checks_its_outputs_before_it_simulates() {
+    let dir = temp("replay-out");
+    std::fs::create_dir_all(dir.join("page.html")).unwrap();
+    let page = dir.join("page.html");
+    let o = deepfoids(&[
+        "replay",
+        "--scene",
+        "seabream_default",
+        "--seconds",
+        "1",
+        "--out",
+        page.to_str().unwrap(),
+    ]);
+    assert_refused(
+        &o,
+        &format!(
+            "--out {} is a folder; give the path of a file to write",
+            page.display()
+        ),
+    );
+    assert_eq!(names_in(&dir), ["page.html"], "no temporary file");
+    let html = dir.join("r.html");
+    let gif = dir.join("r.gif");
+    let o = deepfoids(&[
+        "replay",
+        "--scene",
+        "seabream_default",
+        "--seconds",
+        "1",
+        "--out",
+        html.to_str().unwrap(),
+        "--gif",
+        gif.to_str().unwrap(),
+        "--gif-size",
+        "1000000",
+    ]);
+    assert_refused(&o, "--gif-size must be 64 to 4096 pixels, got 1000000");
+    assert_eq!(
+        names_in(&dir),
+        ["page.html"],
+        "no page, no GIF, no temporary file"
+    );
+    assert_eq!(text(&o).lines().count(), 1, "{}", text(&o));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Issue 25: an output folder below a file was reported for its lock file
+/// `.NAME.lock`; it is refused for `--out` before anything runs.
+#[test]
+fn an_output_folder_below_a_file_names_the_option() {
+    let dir = temp("out-below-file");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("file"), "x").unwrap();
+    let out = dir.join("file/run");
+    let o = on_seabream(None, "simulate", "0.2", &out).output().unwrap();
+    assert_refused(
+        &o,
+        &format!(
+            "--out {}: {} is a file, not a folder",
+            out.display(),
+            dir.join("file").display()
+        ),
+    );
+    assert!(!text(&o).contains(".lock"), "{}", text(&o));
+    assert_eq!(names_in(&dir), ["file"], "no lock file, no stub folder");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Issue 25: configuration mistakes through the binary — a folder as a
+/// species file, a missing `--configs`, a group count of the wrong sign, a
+/// zero `time_horizon`, a binary scene file.
+#[test]
+fn configuration_mistakes_are_named_plainly() {
+    // A folder where species/seabream.toml belongs: not "unknown species".
+    let species_root = configs_with("species-dir", "count = 10", "count = 10");
+    let root = species_root.clone();
+    let species = root.join("species/seabream.toml");
+    std::fs::remove_file(&species).unwrap();
+    std::fs::create_dir(&species).unwrap();
+    let out = temp("config-mistakes-out");
+    let o = on_seabream(Some(&root), "eval", "1", &out)
+        .output()
+        .unwrap();
+    assert_refused(
+        &o,
+        &format!("{} is a folder, not a TOML file", species.display()),
+    );
+    assert!(!text(&o).contains("unknown species"), "{}", text(&o));
+
+    // No configuration folder: not an empty "available:" list.
+    let missing = temp("no-such-configs");
+    let o = on_seabream(Some(&missing), "eval", "1", &out)
+        .output()
+        .unwrap();
+    assert_refused(
+        &o,
+        &format!(
+            "the configuration folder {} does not exist",
+            missing.display()
+        ),
+    );
+    assert!(!text(&o).contains("available:"), "{}", text(&o));
+
+    // A negative count: not a bare "expected usize".
+    let count_root = configs_with("negative-count", "count = 10", "count = -1");
+    let o = on_seabream(Some(&count_root), "eval", "1", &out)
+        .output()
+        .unwrap();
+    assert_refused(
+        &o,
+        "seabream_default.toml: line 14, column 9, field `group[0].count`: invalid value: integer `-1`, expected a whole number ≥ 0",
+    );
+
+    // time_horizon = 0: named by itself, not as buffer_size.
+    let root = configs_checkpointing("horizon");
+    let ppo = root.join("train/ppo.toml");
+    let t = std::fs::read_to_string(&ppo).unwrap();
+    let line = t
+        .lines()
+        .find(|l| l.starts_with("time_horizon"))
+        .unwrap()
+        .to_string();
+    std::fs::write(&ppo, t.replace(&line, "time_horizon = 0")).unwrap();
+    let runs = temp("horizon-runs");
+    let o = train_cmd(&root, &runs, "h", "10", &[]).output().unwrap();
+    assert_refused(
+        &o,
+        "ppo.toml: field `time_horizon`: must be at least 1, got 0",
+    );
+    assert!(!text(&o).contains("buffer_size"), "{}", text(&o));
+    assert!(!runs.join("h").exists(), "no stub run folder");
+
+    // A binary scene file: its cause once.
+    let scene = temp("binary-scene.toml");
+    std::fs::write(&scene, [0x7f, b'E', b'L', b'F', 0xff, 0xfe, 0]).unwrap();
+    let o = deepfoids(&[
+        "eval",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--seconds",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_refused(
+        &o,
+        &format!("cannot read {}: not UTF-8 text", scene.display()),
+    );
+    assert_eq!(text(&o).matches("not UTF-8").count(), 1, "{}", text(&o));
+    assert!(!out.exists(), "nothing is written");
+    let _ = std::fs::remove_file(&scene);
+    for d in [species_root, count_root, root, runs] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+/// Issue 25: a text file given as an ONNX policy said "Reading proto model".
+#[test]
+fn a_text_file_as_an_onnx_policy_is_named() {
+    let dir = temp("text-onnx");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("policy.onnx");
+    std::fs::write(&file, "not a model\n").unwrap();
+    let out = temp("text-onnx-out");
+    let o = deepfoids(&[
+        "eval",
+        "--scene",
+        "seabream_default",
+        "--policy",
+        file.to_str().unwrap(),
+        "--seconds",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_refused(
+        &o,
+        &format!("{} is not an ONNX model (it is a text file", file.display()),
+    );
+    assert!(!text(&o).contains("Reading proto model"), "{}", text(&o));
+    assert!(!out.exists(), "nothing is written");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -4,13 +4,17 @@ use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CountError {
-    #[error("{path}: {source}")]
+    /// The I/O error is part of the message, not a `source`: a chain says it once.
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{path} does not exist")]
     Missing { path: PathBuf },
+    /// The file is no ONNX protobuf at all (a text file, say).
+    #[error("{path} is not an ONNX model ({why})")]
+    NotOnnxFile { path: PathBuf, why: String },
     #[error("{path} is not a loadable ONNX model: {message}")]
     NotOnnx { path: PathBuf, message: String },
     #[error(
@@ -39,9 +43,9 @@ pub enum CountError {
 
 impl CountError {
     pub fn io(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> CountError + '_ {
-        move |source| CountError::Io {
+        move |error| CountError::Io {
             path: path.to_path_buf(),
-            source,
+            error,
         }
     }
 }

@@ -151,7 +151,7 @@ impl Frames {
                         Err(e) => {
                             return Err(CountError::Io {
                                 path: path.clone(),
-                                source: e,
+                                error: e,
                             });
                         }
                     }

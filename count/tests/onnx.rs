@@ -164,8 +164,14 @@ fn files_that_are_not_detectors_are_named() {
     let p = tmp("not.onnx");
     std::fs::write(&p, b"this is not protobuf at all").unwrap();
     let e = Detector::load(&p, 416).err().unwrap();
-    assert!(matches!(e, CountError::NotOnnx { .. }), "{e}");
-    assert!(e.to_string().contains("not.onnx"), "{e}");
+    assert!(matches!(e, CountError::NotOnnxFile { .. }), "{e}");
+    // Issue 25: once "… is not a loadable ONNX model: Reading proto model".
+    assert!(
+        e.to_string().ends_with(
+            "not.onnx is not an ONNX model (it is a text file; an ONNX model is a binary protobuf)"
+        ),
+        "{e}"
+    );
     let e = Detector::load(&tmp("missing.onnx"), 416).err().unwrap();
     assert!(e.to_string().contains("missing.onnx") && e.to_string().contains("does not exist"));
     // Rank 2 output: neither format.

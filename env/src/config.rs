@@ -13,13 +13,15 @@ use std::fmt;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-/// Everything that can go wrong while reading configuration.
+/// Everything that can go wrong while reading configuration. (An I/O error
+/// is part of the message, not a `source`, so that a chain printed with
+/// `{:#}` says the cause once.)
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{path}: {message}")]
     Parse { path: PathBuf, message: String },
@@ -38,13 +40,43 @@ pub enum ConfigError {
         above: bool,
         limit: String,
     },
-    #[error("unknown {what} `{name}` (looked for {path}); available: {}", available.join(", "))]
+    #[error(
+        "unknown {what} `{name}` (looked for {path}); {}",
+        listing(path, available)
+    )]
     Unknown {
         what: &'static str,
         name: String,
         path: PathBuf,
         available: Vec<String>,
     },
+    /// A folder where a configuration file belongs (`species/x.toml/`).
+    #[error("{path} is a folder, not a TOML file")]
+    NotAFile { path: PathBuf },
+    /// The configuration root (`--configs`) is missing or not a folder.
+    #[error(
+        "the configuration folder {root} {}; it should hold species/, sites/, scenes/, rewards/ and train/",
+        if root.exists() { "is not a folder" } else { "does not exist" }
+    )]
+    NoRoot { root: PathBuf },
+}
+
+/// What an [`ConfigError::Unknown`] could have been: the names beside `path`,
+/// or that its folder holds none.
+fn listing(path: &Path, available: &[String]) -> String {
+    if !available.is_empty() {
+        return format!("available: {}", available.join(", "));
+    }
+    let dir = if path.extension().is_some() {
+        path.parent().unwrap_or(path)
+    } else {
+        path
+    };
+    if dir.is_dir() {
+        format!("{} holds none", dir.display())
+    } else {
+        format!("{} does not exist", dir.display())
+    }
 }
 
 impl ConfigError {
@@ -59,7 +91,7 @@ impl ConfigError {
     /// The message without the file it names.
     fn detail(&self) -> String {
         match self {
-            ConfigError::Io { source, .. } => source.to_string(),
+            ConfigError::Io { error, .. } => error.to_string(),
             ConfigError::Parse { message, .. } => message.clone(),
             ConfigError::Invalid { field, message, .. } => format!("field `{field}`: {message}"),
             ConfigError::Limit {
@@ -72,7 +104,9 @@ impl ConfigError {
                 "{field} = {value} is {} the limit of {limit}",
                 if *above { "above" } else { "below" }
             ),
-            ConfigError::Unknown { .. } => self.to_string(),
+            ConfigError::Unknown { .. }
+            | ConfigError::NotAFile { .. }
+            | ConfigError::NoRoot { .. } => self.to_string(),
         }
     }
 }
@@ -135,7 +169,10 @@ impl Overrides<'_> {
                 above,
                 limit,
             },
-            e @ (ConfigError::Io { .. } | ConfigError::Unknown { .. }) => e,
+            e @ (ConfigError::Io { .. }
+            | ConfigError::Unknown { .. }
+            | ConfigError::NotAFile { .. }
+            | ConfigError::NoRoot { .. }) => e,
             e if loads(None) => ConfigError::Invalid {
                 path: self.file.to_path_buf(),
                 field: match self.table.keys().find(|k| !loads(Some(k))) {
@@ -179,13 +216,19 @@ impl Range {
         self.at(0.5)
     }
 
-    fn check(&self, path: &Path, field: &str, min: f32) -> Result<(), ConfigError> {
+    /// Finite, ordered low to high, and at least `min` (`None`: any finite numbers).
+    fn check(&self, path: &Path, field: &str, min: Option<f32>) -> Result<(), ConfigError> {
         let (a, b) = self.bounds();
-        if !(a.is_finite() && b.is_finite()) || a > b || a < min {
+        let low = min.is_some_and(|m| a < m);
+        if !(a.is_finite() && b.is_finite()) || a > b || low {
+            let allowed = match min {
+                Some(m) => format!("finite, ordered low to high and at least {m}"),
+                None => "two finite numbers, ordered low to high".to_string(),
+            };
             return Err(ConfigError::invalid(
                 path,
                 field,
-                format!("range {self} must be finite, ordered low to high and at least {min}"),
+                format!("range {self} must be {allowed}"),
             ));
         }
         Ok(())
@@ -309,9 +352,9 @@ impl SpeciesConfig {
         for (i, c) in self.collider_bl.iter().enumerate() {
             positive(*c, &format!("collider_bl[{i}]"))?;
         }
-        Range::Uniform(self.speed_bl).check(path, "speed_bl", 0.0)?;
+        Range::Uniform(self.speed_bl).check(path, "speed_bl", Some(0.0))?;
         positive(self.speed_bl[1], "speed_bl[1]")?;
-        Range::Uniform(self.temperature_pref).check(path, "temperature_pref", f32::MIN)?;
+        Range::Uniform(self.temperature_pref).check(path, "temperature_pref", None)?;
         if !(self.initial_speed_bl >= 0.0 && self.initial_speed_bl <= self.speed_bl[1]) {
             return Err(ConfigError::invalid(
                 path,
@@ -352,13 +395,17 @@ impl SpeciesConfig {
         for (name, class) in &self.size_classes {
             class
                 .body_scale
-                .check(path, &format!("size_classes.{name}.body_scale"), 1e-3)?;
-            class
-                .light_lpref
-                .check(path, &format!("size_classes.{name}.light_lpref"), 0.0)?;
-            class
-                .light_hpref
-                .check(path, &format!("size_classes.{name}.light_hpref"), 0.0)?;
+                .check(path, &format!("size_classes.{name}.body_scale"), Some(1e-3))?;
+            class.light_lpref.check(
+                path,
+                &format!("size_classes.{name}.light_lpref"),
+                Some(0.0),
+            )?;
+            class.light_hpref.check(
+                path,
+                &format!("size_classes.{name}.light_hpref"),
+                Some(0.0),
+            )?;
             if class.light_lpref.bounds().0 <= self.light_steep[0]
                 || class.light_hpref.bounds().1 >= self.light_steep[1]
             {
@@ -826,12 +873,27 @@ impl ConfigDirs {
         let path = self.root.join(sub).join(format!("{name}.toml"));
         if path.is_file() {
             Ok(path)
+        } else if path.is_dir() {
+            Err(ConfigError::NotAFile { path })
         } else {
+            self.check_root()?;
             Err(ConfigError::Unknown {
                 what: kind,
                 name: name.to_string(),
                 path,
                 available: self.list(sub),
+            })
+        }
+    }
+
+    /// The root is a folder: otherwise every name would be "unknown" with an
+    /// empty list of the available ones.
+    pub fn check_root(&self) -> Result<(), ConfigError> {
+        if self.root.is_dir() {
+            Ok(())
+        } else {
+            Err(ConfigError::NoRoot {
+                root: self.root.clone(),
             })
         }
     }
@@ -843,7 +905,7 @@ impl ConfigDirs {
                 rd.filter_map(|e| e.ok())
                     .filter_map(|e| {
                         let p = e.path();
-                        (p.extension()? == "toml")
+                        (p.extension()? == "toml" && p.is_file())
                             .then(|| p.file_stem()?.to_str().map(str::to_string))?
                     })
                     .collect()
@@ -865,9 +927,14 @@ impl ConfigDirs {
             if p.is_file() {
                 return Ok(p.to_path_buf());
             }
+            if p.is_dir() {
+                return Err(ConfigError::NotAFile {
+                    path: p.to_path_buf(),
+                });
+            }
             return Err(ConfigError::Io {
                 path: p.to_path_buf(),
-                source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such scene file"),
+                error: std::io::Error::new(std::io::ErrorKind::NotFound, "no such scene file"),
             });
         }
         self.named("scene", "scenes", id_or_path)
@@ -905,6 +972,7 @@ impl ConfigDirs {
     /// The weights of `phase` in the reward profile, `rewards/<profile>/<phase>.toml`.
     pub fn rewards(&self, phase: Phase) -> Result<RewardWeights, ConfigError> {
         let profile = &self.reward_profile;
+        self.check_root()?;
         if profile.is_empty() || profile.contains(['/', '\\']) || profile.starts_with('.') {
             return Err(ConfigError::Unknown {
                 what: "reward profile",
@@ -936,9 +1004,9 @@ impl ConfigDirs {
 /// Read and deserialize a TOML file of at most [`crate::limits::MAX_CONFIG_BYTES`];
 /// errors name the file, line and field.
 pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, ConfigError> {
-    let io = |source| ConfigError::Io {
+    let io = |error| ConfigError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
     };
     let max = crate::limits::MAX_CONFIG_BYTES;
     let mut bytes = Vec::new();
@@ -967,11 +1035,71 @@ pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, Confi
                 let before = &text[..text.floor_char_boundary(span.start)];
                 let line = before.matches('\n').count() + 1;
                 let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-                format!("line {line}, column {column}: {}", e.message())
+                let field =
+                    field_at(&text, span.start).map_or(String::new(), |f| format!(", field `{f}`"));
+                format!(
+                    "line {line}, column {column}{field}: {}",
+                    plain(e.message())
+                )
             }
-            None => e.message().to_string(),
+            None => plain(e.message()),
         },
     })
+}
+
+/// The dotted name of the `key = value` on the line holding byte `at` of a
+/// TOML `text`, under its last table header: `group[1].count`. `None` when
+/// that line holds no `key =` (a value continued from an earlier line).
+fn field_at(text: &str, at: usize) -> Option<String> {
+    let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[start..].lines().next()?;
+    let key = line.split_once('=')?.0.trim();
+    let bare = |k: &str| {
+        !k.is_empty()
+            && k.chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
+    };
+    if !bare(key) {
+        return None;
+    }
+    let headers = text[..start]
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.starts_with('['));
+    let table = match headers.clone().next_back() {
+        None => return Some(key.to_string()),
+        Some(h) => h.split('#').next().unwrap_or(h).trim(),
+    };
+    Some(
+        match table.strip_prefix("[[").and_then(|t| t.strip_suffix("]]")) {
+            Some(name) => {
+                let index = headers
+                    .filter(|h| h.starts_with(&format!("[[{name}]]")))
+                    .count()
+                    - 1;
+                format!("{}[{index}].{key}", name.trim())
+            }
+            None => format!("{}.{key}", table.trim_matches(['[', ']']).trim()),
+        },
+    )
+}
+
+/// serde's message with its Rust type names said as the numbers they allow:
+/// "expected usize" becomes "expected a whole number ≥ 0".
+fn plain(message: &str) -> String {
+    let mut m = message.to_string();
+    for (rust, allowed) in [
+        ("usize", "a whole number ≥ 0"),
+        ("u64", "a whole number ≥ 0"),
+        ("u32", "a whole number from 0 to 4294967295"),
+        ("u16", "a whole number from 0 to 65535"),
+        ("u8", "a whole number from 0 to 255"),
+        ("f32", "a number"),
+        ("f64", "a number"),
+    ] {
+        m = m.replace(&format!("expected {rust}"), &format!("expected {allowed}"));
+    }
+    m
 }
 
 fn from_table<T: serde::de::DeserializeOwned>(
@@ -982,7 +1110,7 @@ fn from_table<T: serde::de::DeserializeOwned>(
         .try_into()
         .map_err(|e: toml::de::Error| ConfigError::Parse {
             path: path.to_path_buf(),
-            message: e.message().to_string(),
+            message: plain(e.message()),
         })
 }
 

@@ -144,3 +144,110 @@ fn every_shipped_scene_matches_the_thesis() {
     let dense = Scene::load(&dirs(), "density_dense", Phase::Pretrain).unwrap();
     assert!((dense.density() - 14.7).abs() < 0.05, "{}", dense.density());
 }
+
+/// Issue 25: a negative fish count once said only "expected usize" — now the
+/// file, line, field and the numbers allowed.
+#[test]
+fn a_negative_count_names_the_field_and_the_range() {
+    let root = configs_with("negcount", "scenes/seabream_default.toml", |t| {
+        t.replace("count = 10", "count = -1")
+    });
+    let e = load_err(&root, "seabream_default");
+    assert!(
+        e.contains("seabream_default.toml: line ")
+            && e.contains("field `group[0].count`")
+            && e.contains("expected a whole number ≥ 0")
+            && !e.contains("usize"),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// Issue 25: a species file that is a folder was "unknown species `seabream`
+/// … available: …, seabream, …".
+#[test]
+fn a_species_file_that_is_a_folder_is_called_a_folder() {
+    let root = configs_with("spdir", "species/seabream.toml", |t| t);
+    let file = root.join("species/seabream.toml");
+    std::fs::remove_file(&file).unwrap();
+    std::fs::create_dir(&file).unwrap();
+    let e = load_err(&root, "seabream_default");
+    assert!(
+        e.ends_with("species/seabream.toml is a folder, not a TOML file"),
+        "{e}"
+    );
+    assert!(!e.contains("unknown"), "{e}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// Issue 25: a missing configuration folder gave "unknown scene … available: "
+/// with nothing after it.
+#[test]
+fn a_missing_configuration_folder_is_named() {
+    let root = std::env::temp_dir().join(format!("deepfoids-no-configs-{}", std::process::id()));
+    let e = load_err(&root, "seabream_default");
+    assert_eq!(
+        e,
+        format!(
+            "the configuration folder {} does not exist; it should hold species/, sites/, scenes/, rewards/ and train/",
+            root.display()
+        )
+    );
+    // A root without the sub-folder says so rather than listing nothing.
+    std::fs::create_dir_all(&root).unwrap();
+    let e = load_err(&root, "seabream_default");
+    assert!(
+        e.contains("unknown scene `seabream_default`")
+            && e.ends_with(&format!("{} does not exist", root.join("scenes").display())),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// Issue 25: `temperature_pref` has no lower bound; its message printed
+/// f32::MIN, "at least -340282350000000000000000000000000000000".
+#[test]
+fn an_unbounded_range_prints_no_huge_bound() {
+    let root = configs_with("temp", "species/seabream.toml", |t| {
+        let line = t
+            .lines()
+            .find(|l| l.starts_with("temperature_pref"))
+            .unwrap()
+            .to_string();
+        t.replace(&line, "temperature_pref = [25.0, 15.0]")
+    });
+    let e = load_err(&root, "seabream_default");
+    assert!(
+        e.contains("field `temperature_pref`: range [25, 15] must be two finite numbers, ordered low to high"),
+        "{e}"
+    );
+    assert!(!e.contains("000000"), "{e}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// Issue 25: a binary file as a scene printed its cause twice.
+#[test]
+fn a_binary_scene_file_says_its_cause_once() {
+    let root = configs_with("binary", "scenes/seabream_default.toml", |t| t);
+    std::fs::write(
+        root.join("scenes/seabream_default.toml"),
+        [0xff, 0xfe, 0, 1],
+    )
+    .unwrap();
+    let err =
+        Scene::load(&ConfigDirs::new(&root), "seabream_default", Phase::Pretrain).unwrap_err();
+    let chain = anyhow_like(&err);
+    assert_eq!(chain.matches("not UTF-8 text").count(), 1, "{chain}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// The error and its sources as the binary prints them (`{:#}` of anyhow).
+fn anyhow_like(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut source = e.source();
+    while let Some(c) = source {
+        s.push_str(&format!(": {c}"));
+        source = c.source();
+    }
+    s
+}

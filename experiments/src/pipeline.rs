@@ -14,6 +14,7 @@
 use crate::load_scene;
 use crate::training::{TrainOptions, curve_ends, evaluate_run, train_scene};
 use anyhow::{Context, Result, bail};
+use deepfoids_env::config::ConfigError;
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 use deepfoids_io::write_atomic;
@@ -143,6 +144,7 @@ fn species_and_targets(
     dirs: &ConfigDirs,
     args: &PipelineOptions,
 ) -> Result<(Vec<String>, Vec<String>)> {
+    dirs.check_root()?;
     let known = dirs.list("species");
     let all = args.species == "all";
     let species: Vec<String> = if all {
@@ -150,6 +152,10 @@ fn species_and_targets(
     } else if known.iter().any(|s| s == &args.species) {
         vec![args.species.clone()]
     } else {
+        // Say why when a name is there but not as a file (a folder `x.toml/`).
+        if let Err(e @ ConfigError::NotAFile { .. }) = dirs.species(&args.species, None) {
+            return Err(e.into());
+        }
         bail!(
             "unknown species `{}`; available: {}, or all",
             args.species,

@@ -35,16 +35,22 @@ impl AtomicFile {
         })
     }
 
-    /// Flush, sync and rename into place.
+    /// Flush, sync and rename into place. On an error (say, the path is a
+    /// folder) the temporary file is removed: nothing is left behind.
     pub fn commit(mut self) -> std::io::Result<()> {
         let writer = self.writer.take().expect("an AtomicFile is committed once");
-        let file = writer
+        let done = writer
             .into_inner()
-            .map_err(|e| with_path(e.into_error(), "write", &self.tmp))?;
-        file.sync_all()
-            .map_err(|e| with_path(e, "sync", &self.tmp))?;
-        std::fs::rename(&self.tmp, &self.path)
-            .map_err(|e| with_path(e, "rename into place", &self.path))
+            .map_err(|e| with_path(e.into_error(), "write", &self.tmp))
+            .and_then(|file| file.sync_all().map_err(|e| with_path(e, "sync", &self.tmp)))
+            .and_then(|()| {
+                std::fs::rename(&self.tmp, &self.path)
+                    .map_err(|e| with_path(e, "rename into place", &self.path))
+            });
+        if done.is_err() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        done
     }
 }
 
@@ -115,5 +121,23 @@ mod tests {
         assert!(dir.join("ck/x").exists());
         assert!(create_dir_atomic(&dir.join("bad"), |_| Err(Error::other("no"))).is_err());
         assert!(!dir.join("bad").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Regression (issue 25): `replay --out` an existing folder left its
+    /// `.NAME.PID.tmp` beside it, since a failed rename skipped the cleanup.
+    #[test]
+    fn a_failed_rename_leaves_no_temporary_file() {
+        let dir = std::env::temp_dir().join(format!("deepfoids-io-rename-{}", std::process::id()));
+        let target = dir.join("replay.html");
+        std::fs::create_dir_all(&target).unwrap();
+        let e = write_atomic(&target, b"page").unwrap_err();
+        assert!(e.to_string().contains("replay.html"), "{e}");
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, ["replay.html"], "only the folder remains");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

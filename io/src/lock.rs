@@ -121,12 +121,15 @@ pub enum LockError {
         /// `None` while the holder has not written its record yet.
         holder: Option<Holder>,
     },
-    #[error("cannot lock {dir}: {what} {path}: {source}")]
+    /// The message leads with the folder the user gave; the lock file is a
+    /// detail at the end. The I/O error is part of the message, not a
+    /// `source`: a chain says it once.
+    #[error("{dir} cannot be locked for writing: {error} (while trying to {what} {path})")]
     Io {
         dir: PathBuf,
         path: PathBuf,
         what: &'static str,
-        source: std::io::Error,
+        error: std::io::Error,
     },
 }
 
@@ -145,11 +148,11 @@ impl DirLock {
     /// fail with [`LockError::Held`] naming the live holder.
     pub fn acquire(dir: &Path) -> Result<Self, LockError> {
         let path = lock_path(dir)?;
-        let err = |what, source| LockError::Io {
+        let err = |what, error| LockError::Io {
             dir: dir.to_path_buf(),
             path: path.clone(),
             what,
-            source,
+            error,
         };
         // Each retry means a holder released the file between our open and
         // our lock; a few in a row would take a storm of processes.
@@ -222,11 +225,11 @@ impl Drop for DirLock {
 
 /// `<canonical parent>/.<name>.lock` for folder `dir`; creates the parent.
 pub fn lock_path(dir: &Path) -> Result<PathBuf, LockError> {
-    let io = |what, path: &Path, source| LockError::Io {
+    let io = |what, path: &Path, error| LockError::Io {
         dir: dir.to_path_buf(),
         path: path.to_path_buf(),
         what,
-        source,
+        error,
     };
     let full = if dir.exists() {
         dir.canonicalize().map_err(|e| io("resolve", dir, e))?
@@ -451,5 +454,23 @@ mod tests {
             DirLock::acquire(Path::new("/")),
             Err(LockError::Io { .. })
         ));
+    }
+
+    /// Issue 25: a lock that cannot be taken is reported for the folder the
+    /// user gave, not for `.NAME.lock`; the lock file is a detail at the end.
+    #[test]
+    fn a_failed_lock_names_the_folder_first() {
+        let dir = temp("names-folder");
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("file");
+        std::fs::write(&file, "x").unwrap();
+        let out = file.join("run");
+        let e = DirLock::acquire(&out).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{} cannot be locked for writing: ", out.display())),
+            "{e}"
+        );
+        assert_eq!(e.matches("os error").count(), 1, "the cause once: {e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

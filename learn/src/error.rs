@@ -62,11 +62,12 @@ pub enum LearnError {
     /// A folder that should hold a run or a policy does not.
     #[error("{path}: {reason}")]
     NotARun { path: PathBuf, reason: String },
-    /// A file of a run that cannot be read or written.
-    #[error("{path}: {source}")]
+    /// A file of a run that cannot be read or written (the I/O error is
+    /// part of the message, not a `source`: a chain says it once).
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A file that exists but does not hold what it should.
     #[error("{path}: {reason}")]
@@ -106,7 +107,7 @@ impl LearnError {
     /// An I/O error on `path`.
     pub fn io(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> LearnError {
         let path = path.into();
-        move |source| LearnError::Io { path, source }
+        move |error| LearnError::Io { path, error }
     }
 }
 

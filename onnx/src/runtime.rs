@@ -18,8 +18,11 @@ pub enum OnnxError {
         path: PathBuf,
         error: std::io::Error,
     },
+    /// The file is no ONNX protobuf at all (a text file, say).
+    #[error("{} is not an ONNX model ({why})", path.display())]
+    NotOnnx { path: PathBuf, why: String },
     #[error("{} is not a loadable ONNX model: {error}", path.display())]
-    NotOnnx { path: PathBuf, error: TractError },
+    Unloadable { path: PathBuf, error: TractError },
     #[error("{} has no output `{name}` (outputs: {})", path.display(), outputs.join(", "))]
     MissingOutput {
         path: PathBuf,
@@ -54,19 +57,34 @@ pub struct OnnxPolicy {
     pub metadata: HashMap<String, String>,
 }
 
+/// Why `bytes` did not decode as an ONNX protobuf, for a person: an empty or
+/// text file is called so (tract says only "Reading proto model").
+pub fn why_not_onnx(bytes: &[u8], error: &TractError) -> String {
+    if bytes.is_empty() {
+        "the file is empty".into()
+    } else if std::str::from_utf8(bytes).is_ok_and(|t| !t.contains('\0')) {
+        "it is a text file; an ONNX model is a binary protobuf, as `deepfoids export` writes".into()
+    } else {
+        format!("{error:#}")
+    }
+}
+
 impl OnnxPolicy {
     pub fn load(path: &Path, stochastic: bool) -> Result<Self> {
         let bytes = std::fs::read(path).map_err(|error| OnnxError::Read {
             path: path.to_path_buf(),
             error,
         })?;
-        let not_onnx = |error| OnnxError::NotOnnx {
+        let inference = tract_onnx::onnx()
+            .model_for_read(&mut bytes.as_slice())
+            .map_err(|e| OnnxError::NotOnnx {
+                path: path.to_path_buf(),
+                why: why_not_onnx(&bytes, &e),
+            })?;
+        let not_onnx = |error| OnnxError::Unloadable {
             path: path.to_path_buf(),
             error,
         };
-        let inference = tract_onnx::onnx()
-            .model_for_read(&mut bytes.as_slice())
-            .map_err(not_onnx)?;
         let names: Vec<String> = inference
             .output_outlets()
             .map_err(not_onnx)?

@@ -176,36 +176,48 @@ impl PpoConfig {
         Ok(())
     }
 
+    /// Each field is checked by itself, and the message names it with its
+    /// allowed range (issue 25: `time_horizon = 0` was blamed on `buffer_size`).
     fn validate(&self, path: &std::path::Path) -> Result<(), ConfigError> {
-        let bad = |field: &str, msg: &str| Err(ConfigError::invalid(path, field, msg));
+        let bad = |field: &str, msg: String| Err(ConfigError::invalid(path, field, msg));
         if !(self.learning_rate > 0.0 && self.learning_rate <= 1.0) {
-            return bad("learning_rate", "must lie in (0, 1]");
+            return bad(
+                "learning_rate",
+                format!("must lie in (0, 1], got {}", self.learning_rate),
+            );
         }
-        if !(0.0..=1.0).contains(&self.gamma) || !(0.0..=1.0).contains(&self.gae_lambda) {
-            return bad("gamma", "gamma and gae_lambda must lie in [0, 1]");
+        for (field, v) in [("gamma", self.gamma), ("gae_lambda", self.gae_lambda)] {
+            if !(0.0..=1.0).contains(&v) {
+                return bad(field, format!("must lie in [0, 1], got {v}"));
+            }
         }
-        if self.clip_epsilon.is_nan() || self.clip_epsilon <= 0.0 {
-            return bad("clip_epsilon", "must be positive");
+        for (field, v) in [
+            ("clip_epsilon", self.clip_epsilon),
+            ("max_grad_norm", self.max_grad_norm),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return bad(field, format!("must be a finite number above 0, got {v}"));
+            }
         }
-        if self.batch_size == 0 || self.buffer_size < self.batch_size {
+        for (field, v) in [
+            ("batch_size", self.batch_size as u64),
+            ("epochs", self.epochs as u64),
+            ("time_horizon", self.time_horizon as u64),
+            ("hidden", self.hidden as u64),
+            ("checkpoint_every", self.checkpoint_every),
+            ("progress_every", self.progress_every),
+        ] {
+            if v == 0 {
+                return bad(field, "must be at least 1, got 0".into());
+            }
+        }
+        if self.buffer_size < self.batch_size {
             return bad(
                 "buffer_size",
-                "buffer_size must be at least batch_size, and batch_size at least 1",
-            );
-        }
-        if self.epochs == 0 || self.time_horizon == 0 || self.hidden == 0 {
-            return bad(
-                "epochs",
-                "epochs, time_horizon and hidden must be at least 1",
-            );
-        }
-        if self.max_grad_norm.is_nan() || self.max_grad_norm <= 0.0 {
-            return bad("max_grad_norm", "must be positive");
-        }
-        if self.checkpoint_every == 0 || self.progress_every == 0 {
-            return bad(
-                "checkpoint_every",
-                "checkpoint_every and progress_every must be at least 1",
+                format!(
+                    "must be at least batch_size ({}), got {}",
+                    self.batch_size, self.buffer_size
+                ),
             );
         }
         Ok(())
@@ -232,5 +244,74 @@ mod tests {
         assert_eq!(c, PpoConfig::default());
         assert_eq!(c.budget("coho", Phase::Pretrain), 4_000_000);
         assert_eq!(c.budget("seabream", Phase::Transfer), 2_000_000);
+    }
+
+    /// Regression (issue 25): `time_horizon = 0` was reported as an error of
+    /// `buffer_size`. Each field is named by itself, with its range.
+    #[test]
+    fn each_bad_value_names_its_own_field_and_range() {
+        let path = std::path::Path::new("configs/train/ppo.toml");
+        let cases: [(PpoConfig, &str); 8] = [
+            (
+                PpoConfig {
+                    time_horizon: 0,
+                    ..Default::default()
+                },
+                "field `time_horizon`: must be at least 1, got 0",
+            ),
+            (
+                PpoConfig {
+                    epochs: 0,
+                    ..Default::default()
+                },
+                "field `epochs`: must be at least 1, got 0",
+            ),
+            (
+                PpoConfig {
+                    hidden: 0,
+                    ..Default::default()
+                },
+                "field `hidden`: must be at least 1, got 0",
+            ),
+            (
+                PpoConfig {
+                    batch_size: 0,
+                    ..Default::default()
+                },
+                "field `batch_size`: must be at least 1, got 0",
+            ),
+            (
+                PpoConfig {
+                    buffer_size: 100,
+                    ..Default::default()
+                },
+                "field `buffer_size`: must be at least batch_size (1024), got 100",
+            ),
+            (
+                PpoConfig {
+                    gae_lambda: 1.5,
+                    ..Default::default()
+                },
+                "field `gae_lambda`: must lie in [0, 1], got 1.5",
+            ),
+            (
+                PpoConfig {
+                    max_grad_norm: -1.0,
+                    ..Default::default()
+                },
+                "field `max_grad_norm`: must be a finite number above 0, got -1",
+            ),
+            (
+                PpoConfig {
+                    progress_every: 0,
+                    ..Default::default()
+                },
+                "field `progress_every`: must be at least 1, got 0",
+            ),
+        ];
+        for (c, want) in cases {
+            let e = c.validate(path).unwrap_err().to_string();
+            assert_eq!(e, format!("configs/train/ppo.toml: {want}"));
+        }
     }
 }

@@ -24,10 +24,11 @@ use std::path::{Path, PathBuf};
 /// Errors of the dataset writer.
 #[derive(Debug, thiserror::Error)]
 pub enum DatasetError {
-    #[error("{path}: {source}")]
+    /// The I/O error is part of the message, not a `source`: a chain says it once.
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("cannot encode {path}: {message}")]
     Encode { path: PathBuf, message: String },
@@ -50,9 +51,9 @@ fn write_json(path: &Path, value: &Value, pretty: bool) -> Result<(), DatasetErr
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> DatasetError + '_ {
-    move |source| DatasetError::Io {
+    move |error| DatasetError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
     }
 }
 

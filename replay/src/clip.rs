@@ -241,16 +241,7 @@ pub fn write_gif(
     size: u32,
     speed: f64,
 ) -> Result<usize> {
-    if !(64..=4096).contains(&size) {
-        return Err(ClipError::Invalid(format!(
-            "--gif-size must be 64 to 4096 pixels, got {size}"
-        )));
-    }
-    if !(speed > 0.0 && speed.is_finite()) {
-        return Err(ClipError::Invalid(format!(
-            "--gif-speed must be a positive number, got {speed}"
-        )));
-    }
+    check_gif(size, speed)?;
     let bytes = gif_bytes(rec, view, size, speed)?;
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|source| ClipError::CreateDir {
@@ -261,6 +252,26 @@ pub fn write_gif(
     deepfoids_io::write_atomic(path, &bytes)?;
     Ok(bytes.len())
 }
+
+/// The size and speed a GIF can be written with: `size` 64 to 4096 px,
+/// `speed` positive and finite. A command checks them before it simulates.
+pub fn check_gif(size: u32, speed: f64) -> Result<()> {
+    if !(GIF_SIZE_PX[0]..=GIF_SIZE_PX[1]).contains(&size) {
+        return Err(ClipError::Invalid(format!(
+            "--gif-size must be {} to {} pixels, got {size}",
+            GIF_SIZE_PX[0], GIF_SIZE_PX[1]
+        )));
+    }
+    if !(speed > 0.0 && speed.is_finite()) {
+        return Err(ClipError::Invalid(format!(
+            "--gif-speed must be a number above 0, got {speed}"
+        )));
+    }
+    Ok(())
+}
+
+/// Width of a GIF view (px), `[min, max]`.
+pub const GIF_SIZE_PX: [u32; 2] = [64, 4096];
 
 /// The GIF file's bytes; each view `size` pixels wide.
 pub fn gif_bytes(rec: &Recording, view: GifView, size: u32, speed: f64) -> Result<Vec<u8>> {

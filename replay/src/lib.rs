@@ -18,7 +18,7 @@ pub mod html;
 pub mod recording;
 pub mod trajectories;
 
-pub use clip::{ClipError, GifView, write_gif};
+pub use clip::{ClipError, GifView, check_gif, write_gif};
 pub use html::{PageSize, page};
 pub use recording::{EnvRecorder, Info, Recording, ReplayError, stride};
 pub use trajectories::from_trajectories;

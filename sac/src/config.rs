@@ -141,53 +141,73 @@ impl SacConfig {
         Ok(())
     }
 
+    /// Each field is checked by itself, and the message names it with its
+    /// allowed range (issue 25).
     pub fn validate(&self, path: &std::path::Path) -> Result<(), ConfigError> {
-        let bad = |field: &str, msg: &str| Err(ConfigError::invalid(path, field, msg));
-        if !self.learning_rate.iter().all(|&lr| lr > 0.0 && lr <= 1.0) {
-            return bad("learning_rate", "both values must lie in (0, 1]");
+        let bad = |field: &str, msg: String| Err(ConfigError::invalid(path, field, msg));
+        for (i, &lr) in self.learning_rate.iter().enumerate() {
+            if !(lr > 0.0 && lr <= 1.0) {
+                return bad(
+                    &format!("learning_rate[{i}]"),
+                    format!("must lie in (0, 1], got {lr}"),
+                );
+            }
         }
-        if !self
-            .init_entropy_coef
-            .iter()
-            .all(|&a| a >= 0.0 && a.is_finite())
-        {
-            return bad(
-                "init_entropy_coef",
-                "both values must be ≥ 0 (0: no entropy term)",
-            );
+        for (i, &a) in self.init_entropy_coef.iter().enumerate() {
+            if !(a >= 0.0 && a.is_finite()) {
+                return bad(
+                    &format!("init_entropy_coef[{i}]"),
+                    format!("must be a finite number ≥ 0 (0: no entropy term), got {a}"),
+                );
+            }
         }
         if !self.target_entropy.is_finite() {
-            return bad("target_entropy", "must be a finite number");
+            return bad(
+                "target_entropy",
+                format!("must be a finite number, got {}", self.target_entropy),
+            );
         }
         if !(self.tau > 0.0 && self.tau <= 1.0) {
-            return bad("tau", "must lie in (0, 1]");
+            return bad("tau", format!("must lie in (0, 1], got {}", self.tau));
         }
         if !(0.0..=1.0).contains(&self.gamma) {
-            return bad("gamma", "must lie in [0, 1]");
+            return bad("gamma", format!("must lie in [0, 1], got {}", self.gamma));
         }
-        if self.batch_size == 0 || self.buffer_size < self.batch_size {
+        for (field, v) in [
+            ("batch_size", self.batch_size as u64),
+            ("hidden", self.hidden as u64),
+            ("layers", self.layers as u64),
+            ("checkpoint_every", self.checkpoint_every),
+            ("summary_every", self.summary_every),
+            ("progress_every", self.progress_every),
+        ] {
+            if v == 0 {
+                return bad(field, "must be at least 1, got 0".into());
+            }
+        }
+        if self.buffer_size < self.batch_size {
             return bad(
                 "buffer_size",
-                "buffer_size must be at least batch_size, and batch_size at least 1",
+                format!(
+                    "must be at least batch_size ({}), got {}",
+                    self.batch_size, self.buffer_size
+                ),
             );
         }
         if !(self.steps_per_update >= 1.0 && self.steps_per_update.is_finite()) {
             return bad(
                 "steps_per_update",
-                "must be at least 1 agent step per update",
+                format!(
+                    "must be a finite number ≥ 1 (agent steps per update), got {}",
+                    self.steps_per_update
+                ),
             );
-        }
-        if self.hidden == 0 || self.layers == 0 {
-            return bad("hidden", "hidden and layers must be at least 1");
         }
         let [lo, hi] = self.log_std_bounds;
         if !(lo < hi && lo.is_finite() && hi.is_finite()) {
-            return bad("log_std_bounds", "must be [low, high] with low < high");
-        }
-        if self.checkpoint_every == 0 || self.summary_every == 0 || self.progress_every == 0 {
             return bad(
-                "checkpoint_every",
-                "checkpoint_every, summary_every and progress_every must be at least 1",
+                "log_std_bounds",
+                format!("must be two finite numbers [low, high] with low < high, got [{lo}, {hi}]"),
             );
         }
         Ok(())
@@ -227,6 +247,49 @@ mod tests {
             ..Default::default()
         };
         let e = c.validate(std::path::Path::new("sac.toml")).unwrap_err();
-        assert!(e.to_string().contains("tau"), "{e}");
+        assert_eq!(
+            e.to_string(),
+            "sac.toml: field `tau`: must lie in (0, 1], got 0"
+        );
+    }
+
+    /// Issue 25: fields once checked in groups are each named by themselves.
+    #[test]
+    fn each_grouped_field_is_named_by_itself() {
+        let path = std::path::Path::new("sac.toml");
+        let cases: [(SacConfig, &str); 4] = [
+            (
+                SacConfig {
+                    layers: 0,
+                    ..Default::default()
+                },
+                "field `layers`: must be at least 1, got 0",
+            ),
+            (
+                SacConfig {
+                    summary_every: 0,
+                    ..Default::default()
+                },
+                "field `summary_every`: must be at least 1, got 0",
+            ),
+            (
+                SacConfig {
+                    batch_size: 0,
+                    ..Default::default()
+                },
+                "field `batch_size`: must be at least 1, got 0",
+            ),
+            (
+                SacConfig {
+                    learning_rate: [0.001, 2.0],
+                    ..Default::default()
+                },
+                "field `learning_rate[1]`: must lie in (0, 1], got 2",
+            ),
+        ];
+        for (c, want) in cases {
+            let e = c.validate(path).unwrap_err().to_string();
+            assert_eq!(e, format!("sac.toml: {want}"));
+        }
     }
 }

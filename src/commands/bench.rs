@@ -1,6 +1,7 @@
 //! `deepfoids bench env`: agent-decisions per second with random actions,
 //! sensor included, warm-up excluded; and where the time goes.
 
+use crate::args::whole;
 use crate::args::{algorithm, parse_backend};
 use anyhow::Result;
 use clap::{Args, Subcommand};
@@ -34,10 +35,10 @@ pub struct BenchPolicyArgs {
     #[arg(long, value_name = "RUN")]
     pub run: PathBuf,
     /// Agents per forward pass
-    #[arg(long, default_value_t = 1000)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 1000)]
     pub agents: usize,
     /// Timed repetitions
-    #[arg(long, default_value_t = 10)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 10)]
     pub reps: usize,
 }
 
@@ -48,7 +49,7 @@ pub struct BenchTrainArgs {
     pub scene: String,
     /// Agent decisions to train, per behaviour [default: enough for 3 updates
     /// of every behaviour, and at least 30,000]
-    #[arg(long)]
+    #[arg(value_parser = whole::<u64>, long)]
     pub steps: Option<u64>,
     /// Training algorithm
     #[arg(long, default_value = "ppo", value_parser = algorithm())]
@@ -59,7 +60,7 @@ pub struct BenchTrainArgs {
     /// PPO's rollout: `ml-agents` or `synchronous` [default: configs/train/ppo.toml's]
     #[arg(long)]
     pub rollout: Option<String>,
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
 }
 
@@ -74,7 +75,7 @@ pub struct BenchEnvArgs {
     /// Simulated seconds of warm-up, not timed
     #[arg(long, default_value_t = 2.0)]
     pub warmup: f64,
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
 }
 

@@ -1,6 +1,7 @@
 //! `deepfoids compare`: runs side by side — learning curves, reward terms and
 //! a table of evaluations (see `deepfoids_experiments::compare`).
 
+use crate::args::whole;
 use anyhow::Result;
 use clap::Args;
 use deepfoids_env::ConfigDirs;
@@ -20,7 +21,7 @@ pub struct CompareArgs {
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
     /// Evaluation seeds 0..N, the same for every run
-    #[arg(long, default_value_t = 3, value_name = "N")]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 3, value_name = "N")]
     pub seeds: u64,
     /// Weight of the exponential moving average of the curves (TensorBoard's smoothing)
     #[arg(long, default_value_t = 0.6, value_name = "W")]

@@ -2,6 +2,7 @@
 //! Fig. 4.5; the pipeline is `deepfoids_count`'s). `deepfoids bench count`
 //! times it.
 
+use crate::args::whole;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use deepfoids_count::count::{Outputs, run as count_run};
@@ -20,13 +21,13 @@ pub struct CountArgs {
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Write every N-th processed frame with its boxes drawn to DIR/annotated (0: none)
-    #[arg(long, default_value_t = 0, value_name = "N")]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 0, value_name = "N")]
     pub annotate: usize,
     /// Process every N-th frame of the input
-    #[arg(long, default_value_t = 1, value_name = "N")]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 1, value_name = "N")]
     pub every: usize,
     /// Stop after this many processed frames
-    #[arg(long, value_name = "N")]
+    #[arg(value_parser = whole::<usize>, long, value_name = "N")]
     pub max_frames: Option<usize>,
     /// No per-frame lines
     #[arg(long)]
@@ -55,10 +56,10 @@ pub struct CountOptions {
     #[arg(long, value_name = "DEG")]
     pub view_fov: Option<f32>,
     /// Side of the corrected view (pixels) [default: the detector's, else 832]
-    #[arg(long, value_name = "PX")]
+    #[arg(value_parser = whole::<u32>, long, value_name = "PX")]
     pub view_size: Option<u32>,
     /// Median-blur kernel (odd pixels; 1: off)
-    #[arg(long, default_value_t = 3)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 3)]
     pub median: u32,
 }
 
@@ -165,7 +166,7 @@ pub struct BenchCountArgs {
     #[command(flatten)]
     pub opts: CountOptions,
     /// Frames to time (after one untimed warm-up frame)
-    #[arg(long, default_value_t = 10)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 10)]
     pub frames: usize,
 }
 

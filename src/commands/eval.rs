@@ -39,7 +39,7 @@ pub struct EvalArgs {
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     bounds::seconds("--seconds", args.seconds)?;
     bounds::warmup("--warmup", args.warmup)?;
-    bounds::at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
+    bounds::positive_at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
@@ -58,6 +58,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
             sa.seed
         ))
     });
+    bounds::out_dir("--out", &out)?;
     let _lock = lock_dir(&out)?;
     let info = if args.replay {
         super::replay::check_recording(&env, args.seconds, args.replay_fps)?;

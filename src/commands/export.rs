@@ -2,6 +2,7 @@
 //! interface (see `deepfoids_learn::onnx`). Runs also write one per behaviour
 //! into their `final/` folder.
 
+use crate::args::whole;
 use anyhow::{Result, bail};
 use clap::Args;
 use deepfoids_experiments::load_actor;
@@ -15,7 +16,7 @@ pub struct ExportArgs {
     #[arg(long, value_name = "RUN")]
     pub run: PathBuf,
     /// Export this checkpoint step instead of the final policy
-    #[arg(long, value_name = "STEP")]
+    #[arg(value_parser = whole::<u64>, long, value_name = "STEP")]
     pub checkpoint: Option<u64>,
     /// Behaviour to export (required when the run has several)
     #[arg(long, value_name = "NAME")]

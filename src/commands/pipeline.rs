@@ -2,6 +2,7 @@
 //! `deepfoids_experiments::pipeline`).
 
 use crate::args::TrainOptionArgs;
+use crate::args::whole;
 use anyhow::Result;
 use clap::Args;
 use deepfoids_env::ConfigDirs;
@@ -14,10 +15,10 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub species: String,
     /// Pretraining budget per behaviour (agent decisions) [default: the thesis' budget]
-    #[arg(long)]
+    #[arg(value_parser = whole::<u64>, long)]
     pub pretrain_steps: Option<u64>,
     /// Transfer budget per behaviour and scene [default: the thesis' budget]
-    #[arg(long)]
+    #[arg(value_parser = whole::<u64>, long)]
     pub transfer_steps: Option<u64>,
     /// Only these target scenes (comma-separated) [default: all of the species, or all]
     #[arg(long, value_delimiter = ',')]

@@ -14,6 +14,7 @@
 //! is re-simulated from its start (the simulation is deterministic for a
 //! seed), and only its missing frames are rendered.
 
+use crate::args::whole;
 use crate::args::{PolicyArgs, SceneArgs};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -42,7 +43,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub policy_args: PolicyArgs,
     /// Frames to render
-    #[arg(long)]
+    #[arg(value_parser = whole::<usize>, long)]
     pub frames: usize,
     /// Frames per simulated second (rounded to whole decision ticks)
     #[arg(long, default_value_t = 5.0)]
@@ -51,16 +52,16 @@ pub struct RenderArgs {
     #[arg(long, default_value = "bottom-fisheye", value_parser = parse_camera)]
     pub camera: CameraKind,
     /// Image width (pixels)
-    #[arg(long, default_value_t = 1280)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 1280)]
     pub width: u32,
     /// Image height (pixels)
-    #[arg(long, default_value_t = 720)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 720)]
     pub height: u32,
     /// Draw time of day, date, chlorophyll, sediment, particles, fish count and camera jitter per clip
     #[arg(long)]
     pub randomize: bool,
     /// Frames per clip with --randomize (without it all frames form one clip)
-    #[arg(long, default_value_t = 50)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 50)]
     pub clip_frames: usize,
     /// Share of the clips held out for validation (whole clips, spread evenly: 0.2 = every 5th);
     /// named in data.yaml (train.txt, val.txt) and annotations_{train,val}.json
@@ -71,7 +72,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub allow_empty: bool,
     /// With --randomize: water draws per clip before an empty clip is an error
-    #[arg(long, default_value_t = 5)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 5)]
     pub water_tries: u32,
     /// Simulated seconds before a clip's first frame (the school settles)
     #[arg(long, default_value_t = 10.0)]
@@ -98,18 +99,18 @@ pub struct BenchRenderArgs {
     #[arg(long, default_value = "coho_default", value_name = "ID|PATH")]
     pub scene: String,
     /// Timed frames
-    #[arg(long, default_value_t = 10)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 10)]
     pub frames: usize,
-    #[arg(long, default_value_t = 1280)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 1280)]
     pub width: u32,
-    #[arg(long, default_value_t = 720)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 720)]
     pub height: u32,
     #[arg(long, default_value = "bottom-fisheye", value_parser = parse_camera)]
     pub camera: CameraKind,
     /// Who acts (as for `render`)
     #[arg(long, default_value = "foids")]
     pub policy: String,
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
 }
 

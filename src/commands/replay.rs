@@ -12,6 +12,7 @@
 //!   (seeded runs are deterministic), and every tick's P and M must equal its
 //!   `metrics.csv` — a changed policy or code is an error, not a different film.
 
+use crate::args::whole;
 use crate::args::{PolicyArgs, SceneArgs, from_rerun, parse_phase, rerun};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -23,7 +24,7 @@ use deepfoids_experiments::evaluate::{Evaluation, RunArgs, evaluate};
 use deepfoids_experiments::{bounds, load_scene, make_policy};
 use deepfoids_io::write_atomic;
 use deepfoids_replay::{EnvRecorder, Info, PageSize, Recording, from_trajectories, page};
-use deepfoids_replay::{GifView, write_gif};
+use deepfoids_replay::{GifView, check_gif, write_gif};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -33,7 +34,7 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "ID|PATH")]
     pub scene: Option<String>,
     /// Random seed (with --from: only for a simulate folder without simulate.json)
-    #[arg(long)]
+    #[arg(value_parser = whole::<u64>, long)]
     pub seed: Option<u64>,
     /// Reward weights of this phase (the reward terms shown)
     #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
@@ -63,7 +64,7 @@ pub struct ReplayArgs {
     #[arg(long, default_value = "both", value_parser = gif_view())]
     pub gif_view: GifView,
     /// Width of each GIF view in pixels (the cage fills it)
-    #[arg(long, default_value_t = 360, value_name = "PX")]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 360, value_name = "PX")]
     pub gif_size: u32,
     /// GIF playback speed relative to real time
     #[arg(long, default_value_t = 1.0, value_name = "X")]
@@ -76,7 +77,12 @@ fn gif_view() -> impl TypedValueParser<Value = GifView> {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
-    bounds::at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
+    bounds::positive_at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
+    bounds::out_file("--out", &args.out)?;
+    if let Some(gif) = &args.gif {
+        bounds::out_file("--gif", gif)?;
+        check_gif(args.gif_size, args.gif_speed)?;
+    }
     let rec = match &args.from {
         Some(dir) => from_folder(dirs, dir, args)?,
         None => {

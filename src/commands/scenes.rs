@@ -4,6 +4,7 @@ use anyhow::Result;
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 
 pub fn run(dirs: &ConfigDirs) -> Result<()> {
+    dirs.check_root()?;
     let ids = dirs.list("scenes");
     if ids.is_empty() {
         anyhow::bail!("no scenes in {}", dirs.root.join("scenes").display());

@@ -2,6 +2,7 @@
 //! frames (oldest left), proximity as brightness and object type as colour.
 
 use crate::args::SceneArgs;
+use crate::args::whole;
 use anyhow::{Result, bail};
 use clap::Args;
 use deepfoids_env::limits::MAX_TICKS;
@@ -18,10 +19,10 @@ pub struct SensorViewArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
     /// Index of the fish to look through (0-based)
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 0)]
     pub fish: usize,
     /// Ticks to simulate (random actions) before looking
-    #[arg(long, default_value_t = 10)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 10)]
     pub step: u64,
     /// Output PNG
     #[arg(long, default_value = "view.png", value_name = "PNG")]

@@ -68,6 +68,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
+    bounds::out_dir("--out", &out_dir)?;
     let _lock = lock_dir(&out_dir)?;
     let mut env = Env::new(scene, sa.seed);
     let mut policy = make_policy(

@@ -1,5 +1,6 @@
 //! `deepfoids train`: train one policy per behaviour of a scene, then evaluate it.
 
+use crate::args::whole;
 use crate::args::{TrainOptionArgs, parse_phase};
 use anyhow::Result;
 use clap::Args;
@@ -24,7 +25,7 @@ pub struct TrainArgs {
     pub init_from: Vec<PathBuf>,
     /// Agent decisions to train, per behaviour (each counts its own, as ML-Agents'
     /// max_steps) [default: the thesis' budget for its species and phase]
-    #[arg(long)]
+    #[arg(value_parser = whole::<u64>, long)]
     pub steps: Option<u64>,
     /// Run name [default: <algo>-<scene>-<phase>-s<seed>]
     #[arg(long)]

@@ -1,6 +1,7 @@
 //! `deepfoids train-detector`: our fish detector trained from scratch on
 //! `render` folders (`deepfoids_count::train`), exported to ONNX.
 
+use crate::args::whole;
 use anyhow::{Result, bail};
 use clap::Args;
 use deepfoids_count::train::{TrainConfig, evaluate, load_data, train};
@@ -16,33 +17,33 @@ pub struct TrainDetectorArgs {
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Optimiser steps
-    #[arg(long, default_value_t = TrainConfig::default().steps)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = TrainConfig::default().steps)]
     pub steps: usize,
     /// Stop after this many minutes even if steps remain (0: no limit)
     #[arg(long, default_value_t = 0.0)]
     pub minutes: f64,
     /// Crops per step
-    #[arg(long, default_value_t = TrainConfig::default().batch)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = TrainConfig::default().batch)]
     pub batch: usize,
     /// Side of the training crops (pixels, a multiple of 8)
-    #[arg(long, default_value_t = TrainConfig::default().crop)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = TrainConfig::default().crop)]
     pub crop: u32,
     /// Adam's first learning rate (decayed linearly to a tenth)
     #[arg(long, default_value_t = TrainConfig::default().lr)]
     pub lr: f64,
     /// Channels of the first layer (the network's width)
-    #[arg(long, default_value_t = TrainConfig::default().base)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = TrainConfig::default().base)]
     pub base: usize,
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
     /// Field of view of the perspective view fisheye frames are corrected to (degrees), as `count`'s
     #[arg(long, default_value_t = 120.0)]
     pub view_fov: f32,
     /// Side of that view (pixels), as `count`'s
-    #[arg(long, default_value_t = 832)]
+    #[arg(value_parser = whole::<u32>, long, default_value_t = 832)]
     pub view_size: u32,
     /// Use at most this many training frames (0: all)
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = whole::<usize>, long, default_value_t = 0)]
     pub max_frames: usize,
     /// No progress lines
     #[arg(long)]
