@@ -40,9 +40,28 @@ pub struct PolicyArgs {
     /// Sample actions (the default; kept so that older scripts still run)
     #[arg(long, hide = true, conflicts_with = "deterministic")]
     pub stochastic: bool,
+    /// With a run folder that has no final policy yet (still training, or
+    /// stopped): load its newest checkpoint; the outputs record its step
+    #[arg(long, conflicts_with = "checkpoint")]
+    pub latest: bool,
 }
 
 impl PolicyArgs {
+    /// `--latest` replaced by the step of `policy`'s newest checkpoint, so
+    /// that everything recorded names the exact checkpoint used.
+    pub fn resolve_latest(&mut self, policy: &str) -> anyhow::Result<()> {
+        if !self.latest {
+            return Ok(());
+        }
+        let run = std::path::Path::new(policy);
+        if !run.is_dir() {
+            anyhow::bail!("--latest needs a run folder as --policy, not `{policy}`");
+        }
+        self.checkpoint = Some(deepfoids_learn::checkpoint::latest_checkpoint(run)?);
+        self.latest = false;
+        Ok(())
+    }
+
     pub fn options(&self) -> PolicyOptions {
         PolicyOptions {
             checkpoint: self.checkpoint,
@@ -128,6 +147,7 @@ pub fn from_rerun(run: &RunArgs) -> anyhow::Result<(SceneArgs, PolicyArgs)> {
             checkpoint: run.checkpoint,
             deterministic: !run.stochastic,
             stochastic: false,
+            latest: false,
         },
     ))
 }

@@ -943,3 +943,144 @@ fn a_text_file_as_an_onnx_policy_is_named() {
     assert!(!out.exists(), "nothing is written");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `configs/train/<algo>` of `configs` with `key = value` lines replaced.
+fn set_train_values(configs: &Path, algo: &str, values: &[(&str, &str)]) {
+    let file = configs.join("train").join(algo);
+    let t = std::fs::read_to_string(&file).unwrap();
+    let t = t
+        .lines()
+        .map(
+            |l| match values.iter().find(|(k, _)| l.starts_with(&format!("{k} "))) {
+                Some((k, v)) => format!("{k} = {v}"),
+                None => l.to_string(),
+            },
+        )
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(file, t).unwrap();
+}
+
+/// Issue 25 item 1: a training config is bounded and planned before any
+/// folder is made — an absurd size is refused by field and range, a config
+/// the machine cannot hold by its estimated memory and largest part, and a
+/// budget that makes no update unless `--allow-no-update` is given.
+#[test]
+fn training_configs_are_planned_before_any_folder() {
+    let configs = configs_checkpointing("train-plan-configs");
+    let runs = temp("train-plan");
+    set_train_values(&configs, "ppo.toml", &[("layers", "100000")]);
+    let o = train_cmd(&configs, &runs, "a", "300", &[])
+        .output()
+        .unwrap();
+    assert_refused(
+        &o,
+        "field `layers`: 100000 is out of range: allowed 1 to 32",
+    );
+    set_train_values(&configs, "ppo.toml", &[("layers", "4"), ("hidden", "4096")]);
+    let o = train_cmd(&configs, &runs, "a", "300", &[])
+        .env("DEEPFOIDS_MEMORY_AVAILABLE", "1G")
+        .output()
+        .unwrap();
+    assert_refused(&o, "needs about");
+    assert_refused(
+        &o,
+        "the largest part is the networks (hidden = 4096, layers = 4)",
+    );
+    set_train_values(&configs, "ppo.toml", &[("hidden", "128")]);
+    // seabream_default's 10 fish: 16 joins of 10 × 64 = 10,240 transitions
+    // (train_cmd allows runs without updates: that flag is dropped here).
+    let allowed = train_cmd(&configs, &runs, "a", "300", &[]);
+    let args: Vec<_> = allowed
+        .get_args()
+        .filter(|a| *a != "--allow-no-update")
+        .collect();
+    let o = command(&[]).args(args).output().unwrap();
+    assert_refused(&o, "a budget of 300 agent steps makes no update");
+    assert_refused(&o, "the first comes after 10241 agent steps");
+    assert_refused(&o, "--allow-no-update");
+    assert!(names_in(&runs).is_empty(), "{:?}", names_in(&runs));
+    let _ = std::fs::remove_dir_all(&runs);
+    let _ = std::fs::remove_dir_all(&configs);
+}
+
+/// Issue 25 items 2 and 3: a run without its final policy is evaluated only
+/// with `--checkpoint STEP` or `--latest`, and the summary names the step;
+/// a failed `--init-from` (corrupt weights) leaves nothing that blocks the
+/// run id; `--resume` passes over a truncated checkpoint with a note.
+#[test]
+fn checkpoints_are_never_used_silently() {
+    let configs = configs_checkpointing("train-ckpt-configs");
+    set_train_values(&configs, "ppo.toml", &[("keep_checkpoints", "2")]);
+    let runs = temp("train-ckpt");
+    let o = train_cmd(&configs, &runs, "src", "300", &[])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let run = runs.join("src");
+    // Checkpoints every 100 agent steps (10 fish): the newest two are kept.
+    let steps: Vec<String> = names_in(&run.join("checkpoints"));
+    assert_eq!(steps.len(), 2, "{steps:?}");
+
+    // No final/state.json: refused by name, then --latest records its step.
+    let state = run.join("final/state.json");
+    let saved = std::fs::read(&state).unwrap();
+    std::fs::remove_file(&state).unwrap();
+    let eval = |extra: &[&str]| {
+        let out = runs.join("eval");
+        let _ = std::fs::remove_dir_all(&out);
+        let mut cmd = on_seabream(Some(&configs), "eval", "1", &out);
+        cmd.args(["--policy", run.to_str().unwrap()]).args(extra);
+        (cmd.output().unwrap(), out)
+    };
+    let (o, out) = eval(&[]);
+    assert_refused(&o, "has no final policy");
+    assert_refused(&o, "--latest");
+    assert!(!out.exists());
+    let (o, out) = eval(&["--latest"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(summary.contains("\"checkpoint\": 300"), "{summary}");
+    std::fs::write(&state, saved).unwrap();
+
+    // Corrupt source weights: the transfer fails and leaves nothing behind.
+    let model = run.join("final/seabream_regular.model.bpk");
+    let weights = std::fs::read(&model).unwrap();
+    std::fs::write(&model, &weights[..weights.len() / 2]).unwrap();
+    let transfer = || {
+        let from = run.to_str().unwrap();
+        let args = ["--phase", "transfer", "--init-from", from];
+        train_cmd(&configs, &runs, "t", "100", &args)
+            .output()
+            .unwrap()
+    };
+    let o = transfer();
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(!runs.join("t").exists(), "{:?}", names_in(&runs));
+    assert!(
+        !names_in(&runs).iter().any(|n| n.ends_with(".start")),
+        "{:?}",
+        names_in(&runs)
+    );
+    std::fs::write(&model, &weights).unwrap();
+    let o = transfer();
+    assert!(o.status.success(), "{}", text(&o));
+
+    // A truncated newest checkpoint: resume from the one before, saying so.
+    let newest = run.join("checkpoints").join(steps.last().unwrap());
+    let file = newest.join("seabream_regular.model.bpk");
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() / 3]).unwrap();
+    let o = train_cmd(&configs, &runs, "src", "400", &["--resume"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("note: resuming from the older checkpoint")
+            && text(&o).contains("resumed from step 200"),
+        "{}",
+        text(&o)
+    );
+    let _ = std::fs::remove_dir_all(&runs);
+    let _ = std::fs::remove_dir_all(&configs);
+}

@@ -223,8 +223,10 @@ pub fn prune(run_dir: &Path, keep: usize) {
     }
 }
 
-/// The folder holding a run's policy: `final/`, or with `step` that checkpoint,
-/// or the newest checkpoint if the run has no final policy yet.
+/// The folder holding a run's policy: `final/`, or with `step` that
+/// checkpoint. A run without a complete `final/` (still training, stopped,
+/// or its `final/state.json` lost) is refused, naming its checkpoints: it
+/// is never silently replaced by one (issue 25).
 pub fn policy_dir(run_dir: &Path, step: Option<u64>) -> Result<PathBuf> {
     let not_a_run = |reason: String| LearnError::NotARun {
         path: run_dir.to_path_buf(),
@@ -234,15 +236,21 @@ pub fn policy_dir(run_dir: &Path, step: Option<u64>) -> Result<PathBuf> {
         return Err(not_a_run("not a run folder (it does not exist)".into()));
     }
     let all = checkpoints(run_dir);
+    let steps = || {
+        all.iter()
+            .map(|(s, _)| s.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     if let Some(step) = step {
         return match all.iter().find(|(s, _)| *s == step) {
             Some((_, p)) => Ok(p.clone()),
+            None if all.is_empty() => Err(not_a_run(format!(
+                "no checkpoint at step {step}; it has no checkpoints"
+            ))),
             None => Err(not_a_run(format!(
                 "no checkpoint at step {step}; it has: {}",
-                all.iter()
-                    .map(|(s, _)| s.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                steps()
             ))),
         };
     }
@@ -250,12 +258,26 @@ pub fn policy_dir(run_dir: &Path, step: Option<u64>) -> Result<PathBuf> {
     if fin.join("state.json").is_file() {
         return Ok(fin);
     }
-    match all.last() {
-        Some((_, p)) => Ok(p.clone()),
-        None => Err(not_a_run(
+    if all.is_empty() {
+        return Err(not_a_run(
             "holds no trained policy (no final/ and no checkpoints/step-*/)".into(),
-        )),
+        ));
     }
+    Err(not_a_run(format!(
+        "has no final policy (final/state.json): the run is still training, was stopped, or lost it; name a checkpoint with --checkpoint STEP (it has: {}) or the newest with --latest, or finish the run with `train --resume`",
+        steps()
+    )))
+}
+
+/// The step of a run's newest checkpoint (what `--latest` loads).
+pub fn latest_checkpoint(run_dir: &Path) -> Result<u64> {
+    checkpoints(run_dir)
+        .last()
+        .map(|(s, _)| *s)
+        .ok_or_else(|| LearnError::NotARun {
+            path: run_dir.to_path_buf(),
+            reason: "--latest: it has no checkpoints/step-*/".into(),
+        })
 }
 
 /// Replace `dir` by a folder written by `fill` under a temporary name: the
@@ -295,8 +317,8 @@ pub struct PolicySource {
 }
 
 impl PolicySource {
-    /// The policy of run folder `run` (its final policy, else its newest
-    /// checkpoint), which must be of algorithm `want` and this build's layout.
+    /// The final policy of run folder `run`, which must be of algorithm
+    /// `want` and this build's layout.
     pub fn open(run: &Path, want: Algorithm, context: &'static str) -> Result<Self> {
         let dir = policy_dir(run, None)?;
         let state = RunState::load_policy(&dir, want, context)?;

@@ -37,19 +37,15 @@ pub struct EvalArgs {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
+    let mut policy_args = args.policy_args.clone();
+    policy_args.resolve_latest(&args.policy)?;
     bounds::seconds("--seconds", args.seconds)?;
     bounds::warmup("--warmup", args.warmup)?;
     bounds::positive_at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(
-        dirs,
-        &args.policy,
-        sa.seed,
-        &env,
-        &args.policy_args.options(),
-    )?;
+    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &policy_args.options())?;
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "runs/eval-{}-{}-s{}",
@@ -99,18 +95,12 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         policy: &name,
         seed: sa.seed,
         phase: sa.phase.as_str(),
-        deterministic: args.policy_args.deterministic,
+        deterministic: policy_args.deterministic,
         warmup: args.warmup,
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
-        rerun: rerun(
-            sa,
-            &args.policy,
-            &args.policy_args,
-            args.warmup,
-            args.seconds,
-        ),
+        rerun: rerun(sa, &args.policy, &policy_args, args.warmup, args.seconds),
     };
     let summary = write_outputs(&out, &env, &eval, &meta)?;
     print_table(&meta, &summary);

@@ -181,6 +181,8 @@ fn ticks(seconds: f64, env: &Env) -> u64 {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
+    let mut policy_args = args.policy_args.clone();
+    policy_args.resolve_latest(&args.policy)?;
     let frames = [1, MAX_FRAMES as u64];
     count_within("--frames", args.frames as u64, frames, "frames")?;
     count_within("--clip-frames", args.clip_frames as u64, frames, "frames")?;
@@ -237,7 +239,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         "randomize": args.randomize, "clip_frames": clip_frames, "warmup": args.warmup,
         "seed": seed, "format": args.format.ext(), "phase": args.scene.phase.as_str(),
         "val_fraction": args.val_fraction, "allow_empty": args.allow_empty, "water_tries": args.water_tries,
-        "stochastic": !args.policy_args.deterministic, "checkpoint": args.policy_args.checkpoint,
+        "stochastic": !policy_args.deterministic, "checkpoint": policy_args.checkpoint,
     });
     let optics: Vec<_> = clips
         .iter()
@@ -273,7 +275,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         }
         let split = Split::of_clip(clip.clip, n_clips, args.val_fraction);
         let cs = clip.apply(&scene);
-        let mut sim = Clip::new(dirs, cs.clone(), clip.seed, &args.policy, &args.policy_args)?;
+        let mut sim = Clip::new(dirs, cs.clone(), clip.seed, &args.policy, &policy_args)?;
         let per_frame = ticks(1.0 / args.fps, &sim.env).max(1);
         sim.step(ticks(args.warmup, &sim.env))?;
         let camera = place_camera(&cs.cage(), &clip.camera, args.width, args.height);
@@ -424,6 +426,7 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
         checkpoint: None,
         deterministic: false,
         stochastic: false,
+        latest: false,
     };
     let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa)?;
     sim.step(ticks(10.0, &sim.env))?;

@@ -77,6 +77,8 @@ fn gif_view() -> impl TypedValueParser<Value = GifView> {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
+    let mut policy_args = args.policy_args.clone();
+    policy_args.resolve_latest(&args.policy)?;
     bounds::positive_at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
     bounds::out_file("--out", &args.out)?;
     if let Some(gif) = &args.gif {
@@ -97,7 +99,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
                 seed: args.seed.unwrap_or(0),
                 phase: args.phase,
             };
-            let run = rerun(&sa, &args.policy, &args.policy_args, 0.0, args.seconds);
+            let run = rerun(&sa, &args.policy, &policy_args, 0.0, args.seconds);
             simulate(dirs, &run, args.fps, "simulated by deepfoids replay")?.0
         }
     };

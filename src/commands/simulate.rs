@@ -61,6 +61,8 @@ impl Tally {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
+    let mut policy_args = args.policy_args.clone();
+    policy_args.resolve_latest(&args.policy)?;
     bounds::seconds("--seconds", args.seconds)?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
@@ -71,13 +73,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     bounds::out_dir("--out", &out_dir)?;
     let _lock = lock_dir(&out_dir)?;
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(
-        dirs,
-        &args.policy,
-        sa.seed,
-        &env,
-        &args.policy_args.options(),
-    )?;
+    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &policy_args.options())?;
     let mut actions = action_buffers(&env);
     let ticks = (args.seconds / env.tick_seconds()).round().max(1.0) as u64;
     let fastest = env
@@ -139,7 +135,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     csv.commit()
         .with_context(|| format!("writing {}", csv_path.display()))?;
     // What `replay --from` needs to put the CSV back into its cage.
-    let rerun = rerun(sa, &args.policy, &args.policy_args, 0.0, args.seconds);
+    let rerun = rerun(sa, &args.policy, &policy_args, 0.0, args.seconds);
     write_atomic(
         out_dir.join("simulate.json"),
         serde_json::to_string_pretty(&rerun)?.as_bytes(),
