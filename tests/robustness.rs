@@ -98,7 +98,7 @@ fn a_scene_too_large_for_the_memory_is_refused_before_it_is_allocated() {
         .unwrap();
     assert_refused(
         &o,
-        "the environment of scene seabream_default (1000 fish) needs about 50.5 MB, but this machine has 21.0 MB available (set by DEEPFOIDS_MEMORY_AVAILABLE)",
+        "the environment of scene seabream_default (1000 fish) needs about 50.7 MB, but this machine has 21.0 MB available (set by DEEPFOIDS_MEMORY_AVAILABLE)",
     );
     assert!(text(&o).contains("use fewer fish"), "{}", text(&o));
     // With the machine's own figure it runs.
