@@ -8,8 +8,16 @@ use crate::env::{Env, EnvError, StepOutput};
 use crate::rng::{Purpose, Stream};
 use crate::traits::FishParams;
 
-/// Errors a policy may report.
-pub type PolicyError = Box<dyn std::error::Error + Send + Sync>;
+/// Errors a policy may report while it acts.
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyError {
+    /// Its model could not compute the actions (e.g. the ONNX runtime failed).
+    #[error("inference failed: {0}")]
+    Inference(String),
+    /// Its model does not fit what the scene hands it (species, shapes).
+    #[error("does not fit the scene: {0}")]
+    Mismatch(String),
+}
 
 /// Chooses actions for the agents of an [`Env`].
 pub trait Policy {

@@ -180,7 +180,7 @@ impl Policy for OnnxPolicy {
             }
             let a = self
                 .run(&batch.grids, &batch.vectors, batch.n_agents)
-                .map_err(|e| e.to_string())?;
+                .map_err(|e| PolicyError::Inference(e.to_string()))?;
             actions[b].clear();
             actions[b].extend_from_slice(&a);
         }
