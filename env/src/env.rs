@@ -86,8 +86,7 @@ use rayon::prelude::*;
 pub use crate::reward::{N_TERMS, TERM_NAMES, Terms};
 pub use crate::traits::BehaviourInfo;
 
-/// Stages with fewer fish than this run as a single task.
-pub const PAR_MIN_LEN: usize = 64;
+pub use crate::state::PAR_MIN_LEN;
 /// Floats of an agent's vector observation.
 pub const VECTOR_OBS: usize = 6;
 

@@ -43,6 +43,10 @@ use crate::config::{
 };
 use std::path::Path;
 
+/// Largest `neighbour_cap` of a reward file: the sensing pass keeps that
+/// many nearest neighbours on the stack (`crate::sensing`).
+pub const MAX_NEIGHBOUR_CAP: usize = 32;
+
 /// Fish in one scene, per group and in total.
 pub const MAX_FISH: usize = 200_000;
 /// `[[group]]` tables in one scene.
@@ -421,7 +425,7 @@ pub(crate) fn rewards(r: &RewardWeights, path: &Path) -> Result<(), ConfigError>
     for (field, v) in fields {
         check(path, field, v, WEIGHT, "")?;
     }
-    let cap = crate::sensing::MAX_NEIGHBOUR_CAP;
+    let cap = MAX_NEIGHBOUR_CAP;
     check_count(
         path,
         "neighbour_cap",

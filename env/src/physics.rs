@@ -30,13 +30,12 @@
 use crate::cage::Cage;
 use crate::collide::{Obb, overlap};
 use crate::config::{ActionTiming, PhysicsConfig, RewardTiming, RewardWeights, SiteConfig};
-use crate::env::PAR_MIN_LEN;
 use crate::forces::{light_at_depth, light_response, temperature_at_depth, temperature_response};
 use crate::kinematics::{angle_deg, basis, decide, integrate_velocity, pitch_deg, turn};
 use crate::reward;
 use crate::rng::{Purpose, Stream};
 use crate::sensing::boundary_closeness;
-use crate::state::{MAX_HITS, Motor, State};
+use crate::state::{MAX_HITS, Motor, PAR_MIN_LEN, State};
 use crate::traits::{BehaviourInfo, Traits};
 use crate::world::{Chase, World};
 use deepfoids_sensors::{Boundary, Obstacle, SpatialGrid};

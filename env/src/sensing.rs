@@ -118,8 +118,7 @@ impl<const K: usize> Nearest<K> {
     }
 }
 
-/// Largest `neighbour_cap` the sensing pass keeps on the stack.
-pub const MAX_NEIGHBOUR_CAP: usize = 32;
+pub use crate::limits::MAX_NEIGHBOUR_CAP;
 
 impl Sensing<'_> {
     /// Fill `frame` with what fish `i` sees and sum up its surroundings.

@@ -7,6 +7,10 @@
 use crate::world::World;
 use glam::{Mat3, Vec3};
 
+/// Stages with fewer fish than this run as a single task (the parallel
+/// passes of `crate::env` and `crate::physics` over the state's arrays).
+pub const PAR_MIN_LEN: usize = 64;
+
 /// Distinct collision partners remembered per decision; beyond, each contact counts anew.
 pub(crate) const MAX_HITS: usize = 12;
 
