@@ -101,6 +101,34 @@ pub fn update_bytes(batch: u64, bodies: u64, hidden: u64, layers: u64) -> u64 {
         .saturating_mul(UPDATE_BYTES_PER_SAMPLE + dense)
 }
 
+/// The networks' part of a learner with `params` trainable parameters.
+pub fn networks_part(params: u64, hidden: usize, layers: usize) -> Part {
+    Part {
+        name: "networks",
+        bytes: params
+            .saturating_mul(TRAIN_BYTES_PER_PARAM)
+            .saturating_add(LEARNER_FIXED_BYTES),
+        fields: format!("hidden = {hidden}, layers = {layers}"),
+    }
+}
+
+/// The update's part: minibatches of `batch_size` through `bodies` bodies,
+/// and acting for `agents` agents.
+pub fn update_part(
+    batch_size: usize,
+    bodies: u64,
+    hidden: usize,
+    layers: usize,
+    agents: usize,
+) -> Part {
+    Part {
+        name: "update",
+        bytes: update_bytes(batch_size as u64, bodies, hidden as u64, layers as u64)
+            .saturating_add((agents as u64).saturating_mul(ACTING_BYTES_PER_AGENT)),
+        fields: format!("batch_size = {batch_size}, hidden = {hidden}, layers = {layers}"),
+    }
+}
+
 /// One part of a run's memory: what it is, its bytes, and the config fields
 /// that set it (for the message that refuses it).
 #[derive(Clone, Debug, PartialEq)]

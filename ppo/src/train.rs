@@ -177,15 +177,9 @@ impl Trainer for Ppo {
         let experience = transitions
             .saturating_mul(per_transition)
             .saturating_add(4 * n * (STACK as u64 - 1) * FRAME_BYTES as u64);
-        let batch = c.batch_size.min(c.buffer_size) as u64;
         MemoryPlan {
             parts: vec![
-                Part {
-                    name: "networks",
-                    bytes: params.saturating_mul(plan::TRAIN_BYTES_PER_PARAM)
-                        + plan::LEARNER_FIXED_BYTES,
-                    fields: format!("hidden = {}, layers = {}", c.hidden, c.layers),
-                },
+                plan::networks_part(params, c.hidden, c.layers),
                 Part {
                     name: "experience",
                     bytes: experience,
@@ -194,15 +188,13 @@ impl Trainer for Ppo {
                         c.buffer_size, c.time_horizon
                     ),
                 },
-                Part {
-                    name: "update",
-                    bytes: plan::update_bytes(batch, 2, h, l)
-                        .saturating_add(n.saturating_mul(plan::ACTING_BYTES_PER_AGENT)),
-                    fields: format!(
-                        "batch_size = {}, hidden = {}, layers = {}",
-                        c.batch_size, c.hidden, c.layers
-                    ),
-                },
+                plan::update_part(
+                    c.batch_size.min(c.buffer_size),
+                    2,
+                    c.hidden,
+                    c.layers,
+                    agents,
+                ),
             ],
         }
     }

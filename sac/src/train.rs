@@ -198,34 +198,21 @@ impl Trainer for Sac {
     /// targets on `s'`); acting: each agent's outputs and scratch.
     fn memory_plan(&self, agents: usize) -> MemoryPlan {
         let c = &self.config;
-        let (h, l, n) = (c.hidden as u64, c.layers as u64, agents as u64);
+        let (h, l) = (c.hidden as u64, c.layers as u64);
         let actor = plan::body_params(h, l, 0) + 2 * (h * 3 + 3);
         let critic = 2 * (plan::body_params(h, l, ACTIONS as u64) + h + 1);
         let params = actor + 2 * critic;
         let batch = c.batch_size as u64;
         MemoryPlan {
             parts: vec![
-                Part {
-                    name: "networks",
-                    bytes: params.saturating_mul(plan::TRAIN_BYTES_PER_PARAM)
-                        + plan::LEARNER_FIXED_BYTES,
-                    fields: format!("hidden = {}, layers = {}", c.hidden, c.layers),
-                },
+                plan::networks_part(params, c.hidden, c.layers),
                 Part {
                     name: "experience",
                     bytes: Replay::bytes_for(c.buffer_size, agents)
                         .saturating_add(batch.saturating_mul(2 * 4 * 1024)),
                     fields: format!("buffer_size = {}, {agents} agents", c.buffer_size),
                 },
-                Part {
-                    name: "update",
-                    bytes: plan::update_bytes(batch, 6, h, l)
-                        .saturating_add(n.saturating_mul(plan::ACTING_BYTES_PER_AGENT)),
-                    fields: format!(
-                        "batch_size = {}, hidden = {}, layers = {}",
-                        c.batch_size, c.hidden, c.layers
-                    ),
-                },
+                plan::update_part(c.batch_size, 6, c.hidden, c.layers, agents),
             ],
         }
     }
