@@ -1,5 +1,5 @@
 //! Training a scene: one policy per behaviour, PPO or SAC, into a run folder
-//! with its resolved configuration, then a deterministic evaluation of it.
+//! with its resolved configuration, then an evaluation of it with sampled actions.
 
 use crate::evaluate::{EvalMeta, RunArgs as EvalRunArgs, evaluate, print_table, write_outputs};
 use crate::policies::load_trained;
@@ -24,7 +24,7 @@ pub struct TrainOptions {
     pub runs_dir: PathBuf,
     /// Compute backend of the training (acting runs on the hand-written kernels).
     pub backend: Backend,
-    /// Simulated seconds of the deterministic evaluation after training (0: none).
+    /// Simulated seconds of the evaluation after training (sampled actions) (0: none).
     pub eval_seconds: f64,
     /// No progress bar and no progress lines.
     pub quiet: bool,
