@@ -1,0 +1,199 @@
+//! Reward-profile files, `rewards/<profile>/<phase>.toml`: [`RewardWeights`]
+//! with the profile's [`Timing`], [`Contacts`] and [`Extensions`], and the
+//! [`Phase`] that picks the file.
+
+use serde::{Deserialize, Serialize};
+
+/// The training phase, which picks the reward weights (thesis §4.5.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    #[default]
+    Pretrain,
+    Transfer,
+}
+
+impl Phase {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Phase::Pretrain => "pretrain",
+            Phase::Transfer => "transfer",
+        }
+    }
+}
+
+impl std::str::FromStr for Phase {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "pretrain" => Ok(Phase::Pretrain),
+            "transfer" => Ok(Phase::Transfer),
+            _ => Err(format!("unknown phase `{s}`; allowed: pretrain, transfer")),
+        }
+    }
+}
+
+/// When the action acts (SPEC §4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionTiming {
+    /// The original Unity agent's reading: at every physics step the speed
+    /// changes by `a0 · Δv_max · BL · dt_sim` (`Δv_max` in BL/s per second) and
+    /// the heading turns by `a1, a2 · turn_step_deg` (SPEC §4; the default).
+    #[default]
+    PerStep,
+    /// The earlier reading: the whole change of one decision (`a0 · Δv_max`
+    /// BL/s, `θ_max` = `physics.max_turn_deg` per decision) spread over its k steps.
+    PerDecision,
+}
+
+/// When `r_M`, `r_BD`, `r_E` and `r_NC` accrue (SPEC §6.1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum RewardTiming {
+    /// `r_M`, `r_BD` and `r_E` at every physics step, `r_NC` once when a
+    /// contact starts, `r_ND` and `r_C` once per decision (SPEC §6.1; the default).
+    #[default]
+    PerStep,
+    /// Every term once per decision from the state at the decision; `r_NC`
+    /// per distinct partner touched during the decision (the earlier reading).
+    PerDecision,
+}
+
+/// When the action acts and the rewards accrue (SPEC §4, §6.1).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Timing {
+    /// SPEC §4: `per_step` (default) or `per_decision`.
+    pub actions: ActionTiming,
+    /// SPEC §6.1: `per_step` (default) or `per_decision`.
+    pub rewards: RewardTiming,
+    /// Heading change per physics step at a full action, `θ_step` (degrees),
+    /// with `actions = "per_step"`. SPEC §4: 1 (the original's Euler angle per step).
+    pub turn_step_deg: f32,
+}
+
+impl Default for Timing {
+    fn default() -> Self {
+        Self {
+            actions: ActionTiming::PerStep,
+            rewards: RewardTiming::PerStep,
+            turn_step_deg: 1.0,
+        }
+    }
+}
+
+/// Fish–fish contacts (SPEC §6.1): the repulsive velocity kicks of the
+/// original agent. Both in m/s, not BL-scaled, as the Unity agent sets them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Contacts {
+    /// Velocity kick away from the partner on the step a contact starts (m/s).
+    /// The Unity agent: 0.03 for 1,000 coho, 0.05 for 300. Default 0.03.
+    pub kick: f32,
+    /// Velocity push away from the partner at every step while they overlap (m/s).
+    /// The Unity agent: 0.0003. Default 0.0003.
+    pub push: f32,
+}
+
+impl Default for Contacts {
+    fn default() -> Self {
+        Self {
+            kick: 0.03,
+            push: 0.0003,
+        }
+    }
+}
+
+/// How `r_ND` counts neighbours (SPEC §6, §6.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum NeighbourForm {
+    /// `Σ_j (90 − Δθ_j)/90`, the thesis' sum (default).
+    #[default]
+    Sum,
+    /// The same sum divided by the number of neighbours counted (§6.2: normalised).
+    Mean,
+}
+
+/// The extensions of SPEC §6.2 the thesis cites but never formalises; all off by default.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Extensions {
+    /// `r_ND` as the thesis' `sum` (default) or the `mean` over the neighbours counted.
+    pub neighbour_form: NeighbourForm,
+    /// Personal space (Føre et al. 2009: ≥ 0.66 BL) in BL: a neighbour nearer
+    /// than this does not count for `r_ND`. 0 (default): off.
+    pub personal_space_bl: f32,
+    /// Penalty per neighbour inside the personal space, per decision, added to
+    /// `r_ND` (> 0 means a cost). 0 (default): none.
+    pub personal_space_penalty: f32,
+    /// Assortment (Krause et al. 1996): `r_ND` counts only neighbours of the
+    /// fish's own species. Default false.
+    pub conspecific_only: bool,
+    /// Assortment by size: each neighbour's `r_ND` term is weighted by
+    /// `min(BL_i, BL_j) / max(BL_i, BL_j)`. Default false.
+    pub size_weighted: bool,
+    /// Whether a net, bottom or surface collision ends the agent's episode
+    /// (SPEC §6, default true). With false the fish pays `r_BC`, bounces back
+    /// inside (the velocity reflected off the plane, the collider moved back
+    /// inside) and its episode goes on (SPEC §6.2).
+    pub boundary_ends_episode: bool,
+}
+
+impl Default for Extensions {
+    fn default() -> Self {
+        Self {
+            neighbour_form: NeighbourForm::Sum,
+            personal_space_bl: 0.0,
+            personal_space_penalty: 0.0,
+            conspecific_only: false,
+            size_weighted: false,
+            boundary_ends_episode: true,
+        }
+    }
+}
+
+/// Reward weights of one phase of a reward profile (SPEC §6, Table 4.1), with
+/// the profile's timing (§4, §6.1), contacts (§6.1) and extensions (§6.2).
+/// File: `rewards/<profile>/<phase>.toml`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RewardWeights {
+    /// Penalty of a boundary collision, `−r_BC` (> 0). SPEC §6: 300.
+    pub boundary_collision: f32,
+    /// Neighbour collision weight `w_NC`. Pretrain 0.5, transfer 4.
+    pub w_nc: f32,
+    /// Boundary avoidance weight `w_BD`. 2.
+    pub w_bd: f32,
+    /// Neighbour interaction weight `w_ND`. 1.5.
+    pub w_nd: f32,
+    /// `r_ND` sums over at most this many nearest neighbours within `d_sense`
+    /// (0: every one, as SPEC §6 writes it). A topological cap keeps the
+    /// reward's scale independent of density (issue 14; README deviations).
+    #[serde(default)]
+    pub neighbour_cap: u32,
+    /// Rotation penalty weight `w_r` (per degree). Pretrain 0.001, transfer 0.5.
+    pub w_r: f32,
+    /// Speed-change penalty weight `w_s` (per BL/s). Pretrain 5, transfer 10.
+    pub w_s: f32,
+    /// Penalty for a pitch at or beyond `θrt` (> 0). SPEC §6: 10.
+    pub pitch_penalty: f32,
+    /// Bonus for level swimming at or above `v_st`. SPEC §6: 2.
+    pub movement_bonus: f32,
+    /// Chase reward weight of the aggressor `w_agg` (per BL/s). 8.
+    pub w_agg: f32,
+    /// Escape weight of the target `w_tar` (per BL/s). 1.
+    pub w_tar: f32,
+    /// One-off reward of an aggressor hitting its target. SPEC §6: 100.
+    pub catch_bonus: f32,
+    /// When actions act and terms accrue (SPEC §4, §6.1).
+    #[serde(default)]
+    pub timing: Timing,
+    /// Contact kicks (SPEC §6.1).
+    #[serde(default)]
+    pub contacts: Contacts,
+    /// SPEC §6.2's extensions (all off by default).
+    #[serde(default)]
+    pub extensions: Extensions,
+}
