@@ -271,14 +271,12 @@ impl Scene {
                 "must be at least 1",
             ));
         }
-        if p.spawn_margin_bl.is_nan()
-            || p.spawn_margin_bl < 0.0
-            || !(0.0..90.0).contains(&p.spawn_pitch_deg)
-        {
+        // (`spawn_margin_bl` is bounded to [0, 100] by `limits::physics`.)
+        if !(0.0..90.0).contains(&p.spawn_pitch_deg) {
             return Err(ConfigError::invalid(
                 path,
-                "physics.spawn_margin_bl",
-                "spawn margin ≥ 0 and pitch in [0, 90)",
+                "physics.spawn_pitch_deg",
+                format!("must lie in [0, 90) degrees, got {}", p.spawn_pitch_deg),
             ));
         }
         for b in &self.behaviours {

@@ -251,3 +251,17 @@ fn anyhow_like(e: &dyn std::error::Error) -> String {
     }
     s
 }
+
+/// A spawn pitch out of range is blamed on its own field (it was blamed on
+/// `physics.spawn_margin_bl`).
+#[test]
+fn a_bad_spawn_pitch_names_its_own_field() {
+    let root = configs_with("pitch", "scenes/seabream_default.toml", |t| {
+        format!("{t}\n[physics]\nspawn_pitch_deg = 95.0\n")
+    });
+    let e = load_err(&root, "seabream_default");
+    assert!(
+        e.contains("physics.spawn_pitch_deg") && e.contains("[0, 90)") && e.contains("95"),
+        "{e}"
+    );
+}
