@@ -76,7 +76,7 @@ def test_policy_errors_name_the_path(tmp_path):
         deepfoids.load_policy(tmp_path / "notes.txt")
     broken = tmp_path / "broken.onnx"
     broken.write_bytes(b"not a model")
-    with pytest.raises(ValueError, match="broken.onnx is not a loadable ONNX model"):
+    with pytest.raises(ValueError, match="broken.onnx is not an ONNX model"):
         deepfoids.load_policy(broken)
     path, grid, vector, _ = case(CHECK)
     policy = deepfoids.load_policy(path)
