@@ -529,3 +529,25 @@ fn pipeline_all_species_transfers_into_three_species() {
         assert_eq!(b["agent_steps"], 200, "{b}");
     }
 }
+
+/// `bench train` with a budget too small for an update says so (issue 23:
+/// it printed a rate with no update and nothing else).
+#[test]
+fn bench_train_warns_when_its_budget_makes_no_update() {
+    let o = deepfoids(&[
+        "bench",
+        "train",
+        "--scene",
+        "seabream_cube5",
+        "--steps",
+        "100",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(
+        t.contains("warning: 100 agent steps make no update of seabream_regular")
+            && t.contains("its first comes after 10241")
+            && t.contains("updates: 0 (0 planned"),
+        "{t}"
+    );
+}

@@ -47,7 +47,7 @@ pub struct BenchTrainArgs {
     /// Scene id or path
     #[arg(long, default_value = "seabream_default", value_name = "ID|PATH")]
     pub scene: String,
-    /// Agent decisions to train, per behaviour [default: enough for 3 updates
+    /// Agent decisions to train, per behaviour [default: enough for at least 3 updates
     /// of every behaviour, and at least 30,000]
     #[arg(value_parser = whole::<u64>, long)]
     pub steps: Option<u64>,
@@ -161,7 +161,9 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
             config: deepfoids_sac::SacConfig::load(dirs)?,
         }),
     };
-    // Every behaviour's update plan: the default budget makes 3 updates of each.
+    // Every behaviour's update plan: the default budget plans one update more
+    // than BENCH_UPDATES, as episode ends can delay PPO's joins by up to a
+    // time horizon (one update's worth at most), so each makes at least 3.
     let plans: Vec<(String, UpdatePlan)> = scene
         .behaviours
         .iter()
@@ -170,7 +172,7 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
     let steps = args.steps.unwrap_or_else(|| {
         plans
             .iter()
-            .map(|(_, p)| p.budget_for(BENCH_UPDATES))
+            .map(|(_, p)| p.budget_for(BENCH_UPDATES + 1))
             .fold(30_000, u64::max)
     });
     bounds::train_steps("--steps", steps)?;
@@ -238,7 +240,7 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
         100.0 * (wall - secs(t.env) - secs(t.inference) - secs(t.update)) / wall
     );
     println!(
-        "updates: {} (the budget plans {expected}; a benchmark without updates measures collection only)",
+        "updates: {} ({expected} planned without episode ends; a benchmark without updates measures collection only)",
         out.updates
     );
     if out.updates > 0 {
