@@ -329,9 +329,10 @@ pub fn open_sources<T: Trainer>(
 }
 
 /// What a run of `trainer` on `scene` needs, checked before its folder is
-/// made (issue 25): every behaviour's budget (`steps`, else its species'
-/// budget for the phase) makes at least one update unless
-/// `allow_no_update`, and the environment with every learner fits into
+/// made (issue 25): no behaviour's budget (`steps`, else its species'
+/// budget for the phase) is too small for any update unless
+/// `allow_no_update` (a budget that updates only if episodes end early gets
+/// a note), and the environment with every learner fits into
 /// the machine's memory ([`deepfoids_env::memory::check`], as `load_scene`
 /// checks an environment). Returns the memory plan.
 pub fn check_run<T: Trainer>(
@@ -350,15 +351,24 @@ pub fn check_run<T: Trainer>(
     for b in &scene.behaviours {
         let budget = steps.unwrap_or_else(|| trainer.budget(&b.species.name, scene.phase));
         let updates = trainer.update_plan(b.count);
-        if updates.updates(budget) == 0 && !allow_no_update {
+        if budget < updates.earliest && !allow_no_update {
             return Err(LearnError::NoUpdate {
                 behaviour: b.name.clone(),
                 agents: b.count,
                 budget,
-                first: updates.first,
+                first: updates.earliest,
                 fields: trainer.update_fields(),
                 config: trainer.config_name(),
             });
+        }
+        if budget < updates.first {
+            eprintln!(
+                "note: behaviour {} makes an update within {budget} agent steps only if episodes end early (without episode ends the first comes after {}; {} in {})",
+                b.name,
+                updates.first,
+                trainer.update_fields(),
+                trainer.config_name()
+            );
         }
         plan.merge(trainer.memory_plan(b.count));
     }

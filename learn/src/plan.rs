@@ -187,10 +187,14 @@ impl MemoryPlan {
 /// When a behaviour's first update comes, and how many its budget makes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct UpdatePlan {
+    /// No budget below this many agent steps makes an update, however the
+    /// episodes end (PPO: the buffer must hold `buffer_size` transitions).
+    pub earliest: u64,
     /// Agent steps of the behaviour before its first update when no episode
-    /// ends early (PPO: an episode end closes a trajectory early and shifts
-    /// the agent's later joins, which can move the update either way by up
-    /// to a time horizon).
+    /// ends early (PPO: an episode end closes a trajectory early, which
+    /// brings updates forward — an untrained school that crashes often
+    /// updates far sooner — and shifts the agent's later joins by up to a
+    /// time horizon).
     pub first: u64,
     /// Agent steps between updates after the first.
     pub every: u64,
@@ -236,6 +240,7 @@ mod tests {
     #[test]
     fn updates_in_a_budget() {
         let p = UpdatePlan {
+            earliest: 11_001,
             first: 64_001,
             every: 64_000,
         };

@@ -215,7 +215,14 @@ impl Trainer for Ppo {
             }
             RolloutScheme::Synchronous => (c.buffer_size as u64).div_ceil(n) * n,
         };
+        // However the episodes end, the buffer needs `buffer_size`
+        // transitions, `n` a decision.
+        let earliest = match c.rollout {
+            RolloutScheme::MlAgents => (c.buffer_size as u64).div_ceil(n) * n + 1,
+            RolloutScheme::Synchronous => every + 1,
+        };
         UpdatePlan {
+            earliest,
             first: every + 1,
             every,
         }

@@ -225,8 +225,10 @@ impl Trainer for Sac {
         let c = &self.config;
         let n = agents.max(1) as u64;
         let first = c.learning_starts + c.steps_per_update.ceil() as u64;
+        let first = first.div_ceil(n) * n + 1;
         UpdatePlan {
-            first: first.div_ceil(n) * n + 1,
+            earliest: first,
+            first,
             every: c.steps_per_update.ceil() as u64,
         }
     }
