@@ -1041,6 +1041,17 @@ fn checkpoints_are_never_used_silently() {
     assert!(o.status.success(), "{}", text(&o));
     let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
     assert!(summary.contains("\"checkpoint\": 300"), "{summary}");
+    // `export` takes the same two ways, and refuses without one.
+    let onnx = runs.join("latest.onnx");
+    let export = |extra: &[&str]| {
+        let mut args = vec!["export", "--run", run.to_str().unwrap()];
+        args.extend(["--out", onnx.to_str().unwrap()]);
+        args.extend(extra);
+        deepfoids(&args)
+    };
+    assert_refused(&export(&[]), "has no final policy");
+    let o = export(&["--latest"]);
+    assert!(o.status.success() && onnx.is_file(), "{}", text(&o));
     std::fs::write(&state, saved).unwrap();
 
     // Corrupt source weights: the transfer fails and leaves nothing behind.

@@ -6,7 +6,7 @@ use crate::args::whole;
 use anyhow::{Result, bail};
 use clap::Args;
 use deepfoids_experiments::load_actor;
-use deepfoids_learn::checkpoint::{RunState, policy_dir};
+use deepfoids_learn::checkpoint::{RunState, latest_checkpoint, policy_dir};
 use deepfoids_learn::onnx::{Metadata, OPSET};
 use std::path::PathBuf;
 
@@ -18,6 +18,9 @@ pub struct ExportArgs {
     /// Export this checkpoint step instead of the final policy
     #[arg(value_parser = whole::<u64>, long, value_name = "STEP")]
     pub checkpoint: Option<u64>,
+    /// Export the newest checkpoint (a run without a final policy yet)
+    #[arg(long, conflicts_with = "checkpoint")]
+    pub latest: bool,
     /// Behaviour to export (required when the run has several)
     #[arg(long, value_name = "NAME")]
     pub behaviour: Option<String>,
@@ -27,7 +30,11 @@ pub struct ExportArgs {
 }
 
 pub fn run(args: &ExportArgs) -> Result<()> {
-    let dir = policy_dir(&args.run, args.checkpoint)?;
+    let step = match args.latest {
+        true => Some(latest_checkpoint(&args.run)?),
+        false => args.checkpoint,
+    };
+    let dir = policy_dir(&args.run, step)?;
     let state = RunState::load(&dir)?;
     state.check_layout(&dir)?;
     let names: Vec<&str> = state.behaviours.iter().map(|b| b.name.as_str()).collect();
