@@ -243,27 +243,15 @@ impl Scene {
         positive(p.dt_sim, "physics.dt_sim")?;
         positive(p.max_turn_deg, "physics.max_turn_deg")?;
         positive(p.chase_timeout, "physics.chase_timeout")?;
-        if !(0.0..=90.0).contains(&p.roll_clamp_deg) {
-            return Err(ConfigError::invalid(
-                path,
-                "physics.roll_clamp_deg",
-                "must lie in [0, 90]",
-            ));
-        }
-        if !(0.0..=1.0).contains(&p.repulsion) {
-            return Err(ConfigError::invalid(
-                path,
-                "physics.repulsion",
-                "must lie in [0, 1]",
-            ));
-        }
-        if !(0.0..=1.0).contains(&p.chase_probability) {
-            return Err(ConfigError::invalid(
-                path,
-                "physics.chase_probability",
-                "must lie in [0, 1]",
-            ));
-        }
+        ConfigError::check_within(path, "physics.roll_clamp_deg", p.roll_clamp_deg, 0.0, 90.0)?;
+        ConfigError::check_within(path, "physics.repulsion", p.repulsion, 0.0, 1.0)?;
+        ConfigError::check_within(
+            path,
+            "physics.chase_probability",
+            p.chase_probability,
+            0.0,
+            1.0,
+        )?;
         if p.max_episode_decisions == 0 {
             return Err(ConfigError::invalid(
                 path,

@@ -109,6 +109,24 @@ fn listing(path: &Path, available: &[String]) -> String {
 }
 
 impl ConfigError {
+    /// `field = value` of `path` must lie in `[lo, hi]` (NaN does not).
+    pub fn check_within(
+        path: &Path,
+        field: &str,
+        value: f32,
+        lo: f32,
+        hi: f32,
+    ) -> Result<(), Self> {
+        if (lo..=hi).contains(&value) {
+            return Ok(());
+        }
+        Err(Self::invalid(
+            path,
+            field,
+            format!("must lie in [{lo}, {hi}]"),
+        ))
+    }
+
     pub fn invalid(path: &Path, field: impl Into<String>, message: impl Into<String>) -> Self {
         ConfigError::Invalid {
             path: path.to_path_buf(),

@@ -139,13 +139,7 @@ impl SpeciesConfig {
                 "must lie outside temperature_pref ([T_lsteep < T_lpref, T_hsteep > T_hpref])",
             ));
         }
-        if !(0.0..=1.0).contains(&self.dominant_fraction) {
-            return Err(ConfigError::invalid(
-                path,
-                "dominant_fraction",
-                "must lie in [0, 1]",
-            ));
-        }
+        ConfigError::check_within(path, "dominant_fraction", self.dominant_fraction, 0.0, 1.0)?;
         if self.size_classes.is_empty() {
             return Err(ConfigError::invalid(
                 path,
