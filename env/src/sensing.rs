@@ -209,8 +209,12 @@ impl Sensing<'_> {
             seen.alignment_sum = nearest.sum();
             counted = nearest.len as u32;
         }
-        if ext.neighbour_form == NeighbourForm::Mean && counted > 0 {
-            seen.alignment_sum /= counted as f32;
+        if counted > 0 {
+            match ext.neighbour_form {
+                NeighbourForm::Sum => {}
+                NeighbourForm::Mean => seen.alignment_sum /= counted as f32,
+                NeighbourForm::Sqrt => seen.alignment_sum /= (counted as f32).sqrt(),
+            }
         }
         seen
     }

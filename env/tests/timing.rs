@@ -233,6 +233,28 @@ fn neighbour_mean() {
     );
 }
 
+/// The same four neighbours, sqrt form: 1.5 · (1 + 2/3 + 1/3 + 0)/√4 = 1.5.
+#[test]
+fn neighbour_sqrt() {
+    let mut s = scene("seabream_default", 5);
+    s.rewards.extensions.neighbour_form = NeighbourForm::Sqrt;
+    s.rewards.contacts.kick = 0.0;
+    s.rewards.contacts.push = 0.0;
+    let mut env = calm_env(s);
+    let c = Vec3::new(-0.5, -1.5, -0.3);
+    place(&mut env, 0, c, Vec3::Z, 0.2);
+    for (k, (dx, deg)) in [(0.7f32, 60f32), (0.3, 0.0), (0.9, 90.0), (0.5, 30.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let f = Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
+        place(&mut env, k + 1, c + Vec3::new(dx, 0.0, 0.0), f, 0.2);
+    }
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    assert!(close(terms(&env, 0)[ND], 1.5, 2e-3), "{:?}", terms(&env, 0));
+}
+
 /// Size assortment: a parallel neighbour half as long counts half:
 /// r_ND = 1.5 · 1 · 0.17/0.34 = 0.75 (for both fish).
 #[test]

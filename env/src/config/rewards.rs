@@ -114,13 +114,18 @@ pub enum NeighbourForm {
     Sum,
     /// The same sum divided by the number of neighbours counted (§6.2: normalised).
     Mean,
+    /// The same sum divided by the square root of the number counted: between the
+    /// two, it still grows with density (×√n for n aligned neighbours, where the
+    /// sum grows ×n and the mean not at all).
+    Sqrt,
 }
 
 /// The extensions of SPEC §6.2 the thesis cites but never formalises; all off by default.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Extensions {
-    /// `r_ND` as the thesis' `sum` (default) or the `mean` over the neighbours counted.
+    /// `r_ND` as the thesis' `sum` (default), the `mean` over the neighbours counted,
+    /// or the sum over `sqrt` of their number.
     pub neighbour_form: NeighbourForm,
     /// Personal space (Føre et al. 2009: ≥ 0.66 BL) in BL: a neighbour nearer
     /// than this does not count for `r_ND`. 0 (default): off.
