@@ -619,6 +619,7 @@ fn a_pipeline_in_use_is_refused() {
         "100",
         "--transfer-steps",
         "100",
+        "--allow-no-update",
         "--runs-dir",
         runs.to_str().unwrap(),
         "--run-id",
@@ -627,6 +628,24 @@ fn a_pipeline_in_use_is_refused() {
     assert_refused(&o, &format!("is in use by PID {}", std::process::id()));
     assert!(!runs.join("p").exists(), "no stage started");
     drop(lock);
+    // Every stage's budget is checked before the first stage trains: a
+    // transfer budget without an update is refused up front (issue 25).
+    let o = deepfoids(&[
+        "pipeline",
+        "--species",
+        "seabream",
+        "--pretrain-steps",
+        "20000",
+        "--transfer-steps",
+        "100",
+        "--runs-dir",
+        runs.to_str().unwrap(),
+        "--run-id",
+        "p",
+    ]);
+    assert_refused(&o, "pipeline stage seabream_default (transfer)");
+    assert_refused(&o, "a budget of 100 agent steps makes no update");
+    assert!(!runs.join("p").exists(), "no stage started");
     // A stage stopped before its first checkpoint starts again from nothing:
     // its old logs go.
     let stage = runs.join("p/pretrain");
@@ -987,6 +1006,9 @@ fn training_configs_are_planned_before_any_folder() {
         &o,
         "the largest part is the networks (hidden = 4096, layers = 4)",
     );
+    // The file named is the one read (--configs), not the shipped one.
+    let file = configs.join("train").join("ppo.toml");
+    assert_refused(&o, &format!("training with {}", file.display()));
     set_train_values(&configs, "ppo.toml", &[("hidden", "128")]);
     // seabream_default's 10 fish: 16 joins of 10 × 64 = 10,240 transitions
     // (train_cmd allows runs without updates: that flag is dropped here).
@@ -998,6 +1020,7 @@ fn training_configs_are_planned_before_any_folder() {
     let o = command(&[]).args(args).output().unwrap();
     assert_refused(&o, "a budget of 300 agent steps makes no update");
     assert_refused(&o, "the first comes after 10241 agent steps");
+    assert_refused(&o, &format!("time_horizon = 64 in {})", file.display()));
     assert_refused(&o, "--allow-no-update");
     assert!(names_in(&runs).is_empty(), "{:?}", names_in(&runs));
     let _ = std::fs::remove_dir_all(&runs);

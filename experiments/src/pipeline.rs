@@ -68,6 +68,19 @@ pub fn run(dirs: &ConfigDirs, args: &PipelineOptions) -> Result<()> {
             crate::bounds::train_steps(flag, s)?;
         }
     }
+    // Every stage's budget and memory before the first trains (issue 25): a
+    // transfer stage that cannot update is refused now, not hours from now.
+    // Its sources do not exist yet; the stage checks them when it starts.
+    for (ids, phase, steps) in [
+        (&defaults, Phase::Pretrain, args.pretrain_steps),
+        (&targets, Phase::Transfer, args.transfer_steps),
+    ] {
+        for scene_id in ids {
+            let scene = load_scene(dirs, scene_id, phase)?;
+            crate::training::check_start(dirs, &scene, steps, &[], opts)
+                .with_context(|| format!("pipeline stage {scene_id} ({})", phase.as_str()))?;
+        }
+    }
     let root = opts.runs_dir.join(&id);
     // One process per pipeline folder for the life of this one (issue 13
     // item 2); each stage's run folder is locked as well while it trains.

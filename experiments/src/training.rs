@@ -8,8 +8,8 @@ use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
 use deepfoids_learn::driver::{check_run, open_sources};
 use deepfoids_learn::{Algorithm, Backend, ProgressMode, RunArgs, TrainOutcome};
-use deepfoids_ppo::PpoConfig;
-use deepfoids_sac::SacConfig;
+use deepfoids_ppo::Ppo;
+use deepfoids_sac::Sac;
 use std::path::{Path, PathBuf};
 
 /// How a scene is trained (the options `train`, `pipeline` and `reproduce`
@@ -45,22 +45,22 @@ pub struct Trained {
 /// The training config of `opts.algo`, with `opts.budgets` in place of its own.
 fn load_config(dirs: &ConfigDirs, opts: &TrainOptions) -> Result<Config> {
     let mut config = match opts.algo {
-        Algorithm::Ppo => Config::Ppo(PpoConfig::load(dirs)?),
-        Algorithm::Sac => Config::Sac(SacConfig::load(dirs)?),
+        Algorithm::Ppo => Config::Ppo(Ppo::load(dirs)?),
+        Algorithm::Sac => Config::Sac(Sac::load(dirs)?),
     };
     for (species, b) in &opts.budgets {
         match &mut config {
-            Config::Ppo(c) => c.budgets.insert(species.clone(), *b),
-            Config::Sac(c) => c.budgets.insert(species.clone(), *b),
+            Config::Ppo(t) => t.config.budgets.insert(species.clone(), *b),
+            Config::Sac(t) => t.config.budgets.insert(species.clone(), *b),
         };
     }
     Ok(config)
 }
 
-/// A training config of either algorithm.
+/// Either algorithm with its training config.
 enum Config {
-    Ppo(PpoConfig),
-    Sac(SacConfig),
+    Ppo(Ppo),
+    Sac(Sac),
 }
 
 /// Everything a run needs before its folder is made (issue 25): the
@@ -69,27 +69,28 @@ enum Config {
 /// and the learners fit into the machine's memory; and the runs of
 /// `init_from` hold policies of this algorithm and architecture with a
 /// source for every behaviour of `scene`. A wrong start thus leaves nothing
-/// behind, and `--force` removes nothing, when it is refused.
+/// behind, and `--force` removes nothing, when it is refused. Returns the
+/// notes for the user ([`check_run`]); [`train_scene`] prints them.
 pub fn check_start(
     dirs: &ConfigDirs,
     scene: &Scene,
     steps: Option<u64>,
     init_from: &[PathBuf],
     opts: &TrainOptions,
-) -> Result<()> {
-    match load_config(dirs, opts)? {
-        Config::Ppo(config) => {
-            let t = deepfoids_ppo::Ppo { config };
-            check_run(&t, scene, steps, opts.allow_no_update)?;
+) -> Result<Vec<String>> {
+    let check = match load_config(dirs, opts)? {
+        Config::Ppo(t) => {
+            let check = check_run(&t, scene, steps, opts.allow_no_update)?;
             open_sources(&t, init_from, scene)?;
+            check
         }
-        Config::Sac(config) => {
-            let t = deepfoids_sac::Sac { config };
-            check_run(&t, scene, steps, opts.allow_no_update)?;
+        Config::Sac(t) => {
+            let check = check_run(&t, scene, steps, opts.allow_no_update)?;
             open_sources(&t, init_from, scene)?;
+            check
         }
-    }
-    Ok(())
+    };
+    Ok(check.notes)
 }
 
 /// Refuse to overwrite a run by accident (ML-Agents' behaviour). The caller
@@ -131,15 +132,17 @@ pub fn train_scene(
     for b in &scene.behaviours {
         let species = &b.species.name;
         let budget = steps.unwrap_or_else(|| match &config {
-            Config::Ppo(c) => c.budget(species, scene.phase),
-            Config::Sac(c) => c.budget(species, scene.phase),
+            Config::Ppo(c) => c.config.budget(species, scene.phase),
+            Config::Sac(c) => c.config.budget(species, scene.phase),
         });
         budgets.insert(b.name.clone(), (budget as i64).into());
     }
     let config_toml = if resume {
         None
     } else {
-        check_start(dirs, &scene, steps, init_from, opts)?;
+        for note in check_start(dirs, &scene, steps, init_from, opts)? {
+            eprintln!("{note}");
+        }
         let mut resolved = toml::Table::new();
         let mut run = toml::Table::new();
         run.insert("run_id".into(), run_id.into());
@@ -158,8 +161,8 @@ pub fn train_scene(
         }
         resolved.insert("run".into(), run.into());
         match &config {
-            Config::Ppo(c) => resolved.insert("ppo".into(), toml::Value::try_from(c)?),
-            Config::Sac(c) => resolved.insert("sac".into(), toml::Value::try_from(c)?),
+            Config::Ppo(c) => resolved.insert("ppo".into(), toml::Value::try_from(&c.config)?),
+            Config::Sac(c) => resolved.insert("sac".into(), toml::Value::try_from(&c.config)?),
         };
         resolved.insert("scene".into(), toml::Value::try_from(&scene)?);
         Some(toml::to_string_pretty(&resolved)?)
@@ -190,8 +193,8 @@ pub fn train_scene(
         config_toml,
     };
     let outcome = match config {
-        Config::Ppo(config) => deepfoids_ppo::train(config, args)?,
-        Config::Sac(config) => deepfoids_sac::train(config, args)?,
+        Config::Ppo(t) => deepfoids_ppo::train(&t, args)?,
+        Config::Sac(t) => deepfoids_sac::train(&t, args)?,
     };
     print_training(&outcome);
     let summary = if opts.eval_seconds > 0.0 {

@@ -120,8 +120,8 @@ fn max_plan(scene: &Scene, ppo: bool) -> u64 {
                 time_horizon: deepfoids_learn::plan::MAX_TIME_HORIZON as usize,
                 ..PpoConfig::default()
             };
-            check_run(&Ppo { config }, scene, Some(u64::MAX), true)
-                .map(|p| p.total())
+            check_run(&Ppo::new(config), scene, Some(u64::MAX), true)
+                .map(|c| c.plan.total())
                 .unwrap_or_else(|e| memory_need(&e))
         } else {
             let config = SacConfig {
@@ -131,8 +131,8 @@ fn max_plan(scene: &Scene, ppo: bool) -> u64 {
                 batch_size: buffer as usize,
                 ..SacConfig::default()
             };
-            check_run(&Sac { config }, scene, Some(u64::MAX), true)
-                .map(|p| p.total())
+            check_run(&Sac::new(config), scene, Some(u64::MAX), true)
+                .map(|c| c.plan.total())
                 .unwrap_or_else(|e| memory_need(&e))
         }
     };
@@ -221,7 +221,7 @@ fn check_case(case: usize, ppo: bool, values: Vec<(&str, String)>) -> Result<(),
             Err(e) => refused(&e.to_string(), file),
             Ok(mut config) => {
                 config.checkpoint_every = u64::MAX / 2;
-                train_within_plan(&Ppo { config }, &scene, ppo, &root)
+                train_within_plan(&Ppo::new(config), &scene, ppo, &root)
             }
         }
     } else {
@@ -231,7 +231,7 @@ fn check_case(case: usize, ppo: bool, values: Vec<(&str, String)>) -> Result<(),
             Err(e) => refused(&e.to_string(), file),
             Ok(mut config) => {
                 config.checkpoint_every = u64::MAX / 2;
-                train_within_plan(&Sac { config }, &scene, ppo, &root)
+                train_within_plan(&Sac::new(config), &scene, ppo, &root)
             }
         }
     };
@@ -253,7 +253,7 @@ fn train_within_plan<T: Trainer + Trains>(
     root: &Path,
 ) -> Result<(), TestCaseError> {
     let plan = check_run(trainer, scene, Some(u64::MAX), true)
-        .map(|p| p.total())
+        .map(|c| c.plan.total())
         .unwrap_or_else(|e| memory_need(&e));
     let max = max_plan(scene, ppo);
     prop_assert!(plan <= max, "planned {} > the bounds' {}", plan, max);
@@ -312,13 +312,13 @@ trait Trains {
 
 impl Trains for Ppo {
     fn train(&self, args: RunArgs) -> deepfoids_learn::Result<deepfoids_learn::TrainOutcome> {
-        deepfoids_ppo::train(self.config.clone(), args)
+        deepfoids_ppo::train(self, args)
     }
 }
 
 impl Trains for Sac {
     fn train(&self, args: RunArgs) -> deepfoids_learn::Result<deepfoids_learn::TrainOutcome> {
-        deepfoids_sac::train(self.config.clone(), args)
+        deepfoids_sac::train(self, args)
     }
 }
 

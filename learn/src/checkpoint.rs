@@ -132,7 +132,7 @@ impl RunState {
         dir: &Path,
         hidden: usize,
         layers: usize,
-        config: &'static str,
+        config: &str,
     ) -> Result<()> {
         if self.hidden != hidden || self.layers != layers {
             return Err(LearnError::Architecture {
@@ -141,7 +141,7 @@ impl RunState {
                 found_hidden: self.hidden,
                 want_layers: layers,
                 want_hidden: hidden,
-                config,
+                config: config.to_string(),
             });
         }
         Ok(())

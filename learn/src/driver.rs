@@ -231,7 +231,7 @@ pub trait Trainer {
     fn algorithm(&self) -> Algorithm;
 
     /// The config file, for error messages (e.g. "configs/train/ppo.toml").
-    fn config_name(&self) -> &'static str;
+    fn config_name(&self) -> String;
 
     /// `(hidden, layers)` of the networks.
     fn architecture(&self) -> (usize, usize);
@@ -316,7 +316,7 @@ pub fn open_sources<T: Trainer>(
                 "--init-from transfers between runs of the same algorithm",
             )?;
             src.state
-                .check_architecture(&src.dir, hidden, layers, trainer.config_name())?;
+                .check_architecture(&src.dir, hidden, layers, &trainer.config_name())?;
             Ok(src)
         })
         .collect::<Result<Vec<_>>>()?;
@@ -334,13 +334,15 @@ pub fn open_sources<T: Trainer>(
 /// `allow_no_update` (a budget that updates only if episodes end early gets
 /// a note), and the environment with every learner fits into
 /// the machine's memory ([`deepfoids_env::memory::check`], as `load_scene`
-/// checks an environment). Returns the memory plan.
+/// checks an environment). Returns the memory plan and the notes, which the
+/// caller prints once (a check may run before its run starts and again at it).
 pub fn check_run<T: Trainer>(
     trainer: &T,
     scene: &Scene,
     steps: Option<u64>,
     allow_no_update: bool,
-) -> Result<MemoryPlan> {
+) -> Result<RunCheck> {
+    let mut notes = Vec::new();
     let mut plan = MemoryPlan {
         parts: vec![Part {
             name: "environment",
@@ -362,13 +364,13 @@ pub fn check_run<T: Trainer>(
             });
         }
         if budget < updates.first {
-            eprintln!(
+            notes.push(format!(
                 "note: behaviour {} makes an update within {budget} agent steps only if episodes end early (without episode ends the first comes after {}; {} in {})",
                 b.name,
                 updates.first,
                 trainer.update_fields(),
                 trainer.config_name()
-            );
+            ));
         }
         plan.merge(trainer.memory_plan(b.count));
     }
@@ -390,7 +392,15 @@ pub fn check_run<T: Trainer>(
         config: trainer.config_name(),
         error,
     })?;
-    Ok(plan)
+    Ok(RunCheck { plan, notes })
+}
+
+/// What [`check_run`] found: the memory plan, and notes for the user
+/// (a budget that updates only if episodes end early).
+#[derive(Clone, Debug)]
+pub struct RunCheck {
+    pub plan: MemoryPlan,
+    pub notes: Vec<String>,
 }
 
 /// Train `trainer`'s algorithm on a scene. See the module documentation.
@@ -500,7 +510,7 @@ fn resume_from<T: Trainer>(
             reason: format!("the run trained on {}, not {}", st.scene, args.scene.id),
         });
     }
-    st.check_architecture(dir, hidden, layers, trainer.config_name())?;
+    st.check_architecture(dir, hidden, layers, &trainer.config_name())?;
     let env = new_env(args, Some(&st));
     let behaviours = learners(trainer, args, &env, Some((dir, &st)), &[])?;
     Ok((st, env, behaviours))

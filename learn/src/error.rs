@@ -47,7 +47,7 @@ pub enum LearnError {
         found_hidden: usize,
         want_layers: usize,
         want_hidden: usize,
-        config: &'static str,
+        config: String,
     },
     /// No source for a behaviour among the given runs.
     #[error(
@@ -82,7 +82,7 @@ pub enum LearnError {
     /// A run that needs more memory than the machine can give.
     #[error("{config}: {error}")]
     Memory {
-        config: &'static str,
+        config: String,
         error: deepfoids_env::memory::MemoryError,
     },
     /// A budget too small for a single update (`--allow-no-update` accepts it).
@@ -95,7 +95,7 @@ pub enum LearnError {
         budget: u64,
         first: u64,
         fields: String,
-        config: &'static str,
+        config: String,
     },
     #[error(transparent)]
     Config(#[from] deepfoids_env::ConfigError),

@@ -125,8 +125,13 @@ impl Default for PpoConfig {
 
 impl PpoConfig {
     /// `train/ppo.toml` under the config root.
+    /// `<configs>/train/ppo.toml`.
+    pub fn path(dirs: &ConfigDirs) -> std::path::PathBuf {
+        dirs.root.join("train").join("ppo.toml")
+    }
+
     pub fn load(dirs: &ConfigDirs) -> Result<Self, ConfigError> {
-        let path = dirs.root.join("train").join("ppo.toml");
+        let path = Self::path(dirs);
         let cfg: PpoConfig = read_toml(&path)?;
         cfg.validate(&path)?;
         cfg.check_sizes(&path)?;

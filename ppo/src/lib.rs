@@ -19,6 +19,6 @@ pub use train::Ppo;
 use deepfoids_learn::driver::{RunArgs, TrainOutcome, run};
 
 /// Train PPO on a scene (see `deepfoids_learn::driver`).
-pub fn train(config: PpoConfig, args: RunArgs) -> deepfoids_learn::Result<TrainOutcome> {
-    run(&Ppo { config }, args)
+pub fn train(trainer: &Ppo, args: RunArgs) -> deepfoids_learn::Result<TrainOutcome> {
+    run(trainer, args)
 }

@@ -62,13 +62,36 @@ use deepfoids_learn::tensor::{ForceInit, ParamIds, clip_grad_norm, tensor1, tens
 use deepfoids_learn::{ACTIONS, Algorithm, BodyConfig, Grids, LearnError, Result};
 use deepfoids_sensors::STACK;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
 /// The PPO algorithm with its hyperparameters.
 pub struct Ppo {
     pub config: PpoConfig,
+    /// The file `config` came from, named in errors.
+    pub source: PathBuf,
+}
+
+impl Ppo {
+    /// The shipped config file's name: `configs/train/ppo.toml`.
+    pub const DEFAULT_SOURCE: &str = "configs/train/ppo.toml";
+
+    /// `config`, named as the shipped file.
+    pub fn new(config: PpoConfig) -> Self {
+        Self {
+            config,
+            source: PathBuf::from(Self::DEFAULT_SOURCE),
+        }
+    }
+
+    /// `<configs>/train/ppo.toml`, loaded and checked.
+    pub fn load(dirs: &deepfoids_env::ConfigDirs) -> Result<Self> {
+        Ok(Self {
+            config: PpoConfig::load(dirs)?,
+            source: PpoConfig::path(dirs),
+        })
+    }
 }
 
 /// The longest a trajectory of `n` agents gets: `time_horizon`, or the
@@ -141,8 +164,8 @@ impl Trainer for Ppo {
         Algorithm::Ppo
     }
 
-    fn config_name(&self) -> &'static str {
-        "configs/train/ppo.toml"
+    fn config_name(&self) -> String {
+        self.source.display().to_string()
     }
 
     fn architecture(&self) -> (usize, usize) {

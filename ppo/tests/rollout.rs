@@ -33,7 +33,7 @@ fn run(rollout: Rollout) -> (Vec<(u64, usize)>, Vec<usize>) {
         layers: 1,
         ..PpoConfig::load(&dirs()).unwrap()
     };
-    let ppo = Ppo { config };
+    let ppo = Ppo::new(config);
     let ctx = LearnerCtx {
         info: &info,
         index: 0,

@@ -6,7 +6,7 @@ use deepfoids_env::{ConfigDirs, Env, Phase, Policy, Scene};
 use deepfoids_learn::checkpoint::{RunState, checkpoints};
 use deepfoids_learn::policy::ActorPolicy;
 use deepfoids_learn::{Backend, ProgressMode, RunArgs, TrainOutcome};
-use deepfoids_ppo::{PpoConfig, Rollout, load_actor, train};
+use deepfoids_ppo::{Ppo, PpoConfig, Rollout, load_actor, train};
 use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -70,7 +70,11 @@ fn run(
     resume: bool,
     init_from: Vec<PathBuf>,
 ) -> TrainOutcome {
-    train(cfg, args(dir, scene, steps, seed, resume, init_from)).unwrap()
+    train(
+        &Ppo::new(cfg),
+        args(dir, scene, steps, seed, resume, init_from),
+    )
+    .unwrap()
 }
 
 /// Tags and steps in a TensorBoard event file (TFRecord framing: u64 length,
@@ -224,7 +228,7 @@ fn resume_continues_at_the_same_step_and_init_from_resets_it() {
     assert_eq!(state.behaviours[0].updates, 7);
     // Resuming another scene is refused with the reason.
     let e = train(
-        cfg.clone(),
+        &Ppo::new(cfg.clone()),
         args(&dir, "seabream_cube5", 5000, 2, true, vec![]),
     )
     .err()
@@ -357,7 +361,7 @@ fn progress_lines_when_stdout_is_not_a_terminal() {
     let mut a = args(&dir, "seabream_default", 2500, 3, false, vec![]);
     a.progress = ProgressMode::Lines;
     a.progress_sink = Some(Box::new(lines.clone()));
-    train(cfg, a).unwrap();
+    train(&Ppo::new(cfg), a).unwrap();
     let text = String::from_utf8(lines.0.lock().unwrap().clone()).unwrap();
     let got: Vec<&str> = text.lines().collect();
     // Log points at 520, 1040, 1560, 2080 (updates) and 2500 (the end):
@@ -409,7 +413,7 @@ fn ppo_improves_over_the_untrained_policy() {
         Phase::Pretrain,
     )
     .unwrap();
-    let out = train(cfg, a).unwrap();
+    let out = train(&Ppo::new(cfg), a).unwrap();
     assert!(out.curve.len() >= 10, "{} log points", out.curve.len());
     let v: Vec<f64> = out.curve.iter().map(|x| x.1).collect();
     let first = (v[0] + v[1]) / 2.0;

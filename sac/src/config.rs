@@ -98,8 +98,13 @@ fn phase_index(phase: Phase) -> usize {
 
 impl SacConfig {
     /// `train/sac.toml` under the config root.
+    /// `<configs>/train/sac.toml`.
+    pub fn path(dirs: &ConfigDirs) -> std::path::PathBuf {
+        dirs.root.join("train").join("sac.toml")
+    }
+
     pub fn load(dirs: &ConfigDirs) -> Result<Self, ConfigError> {
-        let path = dirs.root.join("train").join("sac.toml");
+        let path = Self::path(dirs);
         let cfg: SacConfig = read_toml(&path)?;
         cfg.validate(&path)?;
         cfg.check_sizes(&path)?;

@@ -16,6 +16,6 @@ pub use train::Sac;
 use deepfoids_learn::driver::{RunArgs, TrainOutcome, run};
 
 /// Train SAC on a scene (see `deepfoids_learn::driver`).
-pub fn train(config: SacConfig, args: RunArgs) -> deepfoids_learn::Result<TrainOutcome> {
-    run(&Sac { config }, args)
+pub fn train(trainer: &Sac, args: RunArgs) -> deepfoids_learn::Result<TrainOutcome> {
+    run(trainer, args)
 }

@@ -67,6 +67,29 @@ use std::time::Instant;
 /// The SAC algorithm with its hyperparameters.
 pub struct Sac {
     pub config: SacConfig,
+    /// The file `config` came from, named in errors.
+    pub source: PathBuf,
+}
+
+impl Sac {
+    /// The shipped config file's name: `configs/train/sac.toml`.
+    pub const DEFAULT_SOURCE: &str = "configs/train/sac.toml";
+
+    /// `config`, named as the shipped file.
+    pub fn new(config: SacConfig) -> Self {
+        Self {
+            config,
+            source: PathBuf::from(Self::DEFAULT_SOURCE),
+        }
+    }
+
+    /// `<configs>/train/sac.toml`, loaded and checked.
+    pub fn load(dirs: &deepfoids_env::ConfigDirs) -> Result<Self> {
+        Ok(Self {
+            config: SacConfig::load(dirs)?,
+            source: SacConfig::path(dirs),
+        })
+    }
 }
 
 /// SAC's own state of a behaviour, `<behaviour>.sac.json` (final policies too:
@@ -170,8 +193,8 @@ impl Trainer for Sac {
         Algorithm::Sac
     }
 
-    fn config_name(&self) -> &'static str {
-        "configs/train/sac.toml"
+    fn config_name(&self) -> String {
+        self.source.display().to_string()
     }
 
     fn architecture(&self) -> (usize, usize) {

@@ -5,7 +5,7 @@ use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
 use deepfoids_learn::checkpoint::{RunState, checkpoints};
 use deepfoids_learn::{Backend, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_sac::replay::{PROXIMITY_TOLERANCE, Replay, next_history};
-use deepfoids_sac::{SacConfig, train};
+use deepfoids_sac::{Sac, SacConfig, train};
 use deepfoids_sensors::{CELLS, FRAME_LEN, STACKED_LEN};
 use std::path::{Path, PathBuf};
 
@@ -47,7 +47,7 @@ fn run_in(
     resume: bool,
 ) -> TrainOutcome {
     train(
-        cfg,
+        &Sac::new(cfg),
         RunArgs {
             scene: Scene::load(dirs, "seabream_default", Phase::Pretrain).unwrap(),
             run_dir: dir.to_path_buf(),

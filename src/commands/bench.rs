@@ -145,9 +145,9 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
     let fish = scene.fish_count();
     let trainer = match args.algo {
         Algorithm::Ppo => {
-            let mut config = deepfoids_ppo::PpoConfig::load(dirs)?;
+            let mut ppo = deepfoids_ppo::Ppo::load(dirs)?;
             if let Some(r) = &args.rollout {
-                config.rollout = match r.as_str() {
+                ppo.config.rollout = match r.as_str() {
                     "ml-agents" => deepfoids_ppo::Rollout::MlAgents,
                     "synchronous" => deepfoids_ppo::Rollout::Synchronous,
                     other => {
@@ -155,11 +155,9 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
                     }
                 };
             }
-            Either::Ppo(deepfoids_ppo::Ppo { config })
+            Either::Ppo(ppo)
         }
-        Algorithm::Sac => Either::Sac(deepfoids_sac::Sac {
-            config: deepfoids_sac::SacConfig::load(dirs)?,
-        }),
+        Algorithm::Sac => Either::Sac(deepfoids_sac::Sac::load(dirs)?),
     };
     // Every behaviour's update plan: the default budget plans one update more
     // than BENCH_UPDATES, as episode ends can delay PPO's joins by up to a
@@ -202,8 +200,8 @@ pub fn train(dirs: &ConfigDirs, args: &BenchTrainArgs) -> Result<()> {
     let rss_before = resident_set_bytes();
     let cpu_before = cpu_seconds();
     let out = match trainer {
-        Either::Ppo(t) => deepfoids_ppo::train(t.config, run),
-        Either::Sac(t) => deepfoids_sac::train(t.config, run),
+        Either::Ppo(t) => deepfoids_ppo::train(&t, run),
+        Either::Sac(t) => deepfoids_sac::train(&t, run),
     };
     let cpu = cpu_seconds().zip(cpu_before).map(|(a, b)| a - b);
     let rss_after = resident_set_bytes();

@@ -57,6 +57,7 @@ pub fn run(dirs: &ConfigDirs, args: &TrainArgs) -> Result<Trained> {
         bounds::train_steps("--steps", steps)?;
     }
     if !args.resume {
+        // Before --force removes anything; train_scene checks again and prints the notes.
         check_start(dirs, &scene, args.steps, &args.init_from, &opts)?;
     }
     // One process per run folder, for the life of this one (issue 13 item 2).
