@@ -83,11 +83,11 @@ fn render_writes_a_yolo_and_coco_dataset() {
         count("in_view_fish", &|l| {
             l["visible_pixels"].as_u64().unwrap() > 0
         });
-        // Detectable: visible pixels and the default least contrast, 0.01.
+        // Detectable: visible pixels and the default least contrast, 0.03.
         for f in fish {
             let l = &f["label"];
             let want = l["visible_pixels"].as_u64().unwrap() > 0
-                && l["contrast"].as_f64().unwrap() >= 0.01 - 1e-6;
+                && l["contrast"].as_f64().unwrap() >= 0.03 - 1e-6;
             assert_eq!(l["detectable"] == true, want, "{l}");
         }
         yolo_lines_in_frames += fish

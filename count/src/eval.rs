@@ -8,6 +8,12 @@
 //! under its monotone envelope (precision at recall r = the best precision at
 //! any recall ≥ r), summed over the recall steps — the all-point
 //! interpolation of PASCAL VOC 2010 and later.
+//!
+//! Fish in view too faint to label (the renderer's contrast below
+//! `--min-contrast`) are *ignored*, as COCO ignores crowd regions: a detection
+//! that matches no labelled fish but covers an ignored one with IoU ≥ the
+//! threshold is neither a true nor a false positive. A detector is then not
+//! punished for finding a fish a person could hardly make out.
 
 use crate::boxes::{Detection, iou};
 
@@ -15,6 +21,18 @@ use crate::boxes::{Detection, iou};
 pub fn average_precision(
     detections: &[Vec<Detection>],
     truth: &[Vec<Detection>],
+    iou_threshold: f32,
+) -> f64 {
+    let none = vec![Vec::new(); truth.len()];
+    average_precision_ignoring(detections, truth, &none, iou_threshold)
+}
+
+/// [`average_precision`] with `ignore[i]`, image `i`'s fish that are neither
+/// to be found nor false when found.
+pub fn average_precision_ignoring(
+    detections: &[Vec<Detection>],
+    truth: &[Vec<Detection>],
+    ignore: &[Vec<Detection>],
     iou_threshold: f32,
 ) -> f64 {
     let n_truth: usize = truth.iter().map(Vec::len).sum();
@@ -43,6 +61,7 @@ pub fn average_precision(
                 matched[img][k] = true;
                 tp += 1;
             }
+            None if ignore[img].iter().any(|g| iou(d, g) >= iou_threshold) => continue,
             None => fp += 1,
         }
         curve.push((tp as f64 / n_truth as f64, tp as f64 / (tp + fp) as f64));
@@ -92,5 +111,25 @@ mod tests {
         // Perfect detections: 1; none: 0.
         assert!((average_precision(&truth, &truth, 0.5) - 1.0).abs() < 1e-9);
         assert_eq!(average_precision(&[vec![], vec![]], &truth, 0.5), 0.0);
+    }
+
+    /// The same, with an ignored (too faint) fish at x 100 of image 0: the
+    /// 0.8 detection there is skipped. Ranked: 0.9 TP (P 1, R 1/3), 0.7 TP
+    /// (P 1, R 2/3), 0.6 FP (P 2/3). AP = 2/3 · 1 = 2/3. A duplicate on an
+    /// ignored fish is skipped too; a detection on nothing stays false.
+    #[test]
+    fn ignored_fish_are_neither_found_nor_false() {
+        let truth = vec![vec![b(0.0, 1.0), b(50.0, 1.0)], vec![b(0.0, 1.0)]];
+        let ignore = vec![vec![b(100.0, 1.0)], vec![]];
+        let dets = vec![
+            vec![b(1.0, 0.9), b(100.0, 0.8), b(101.0, 0.75), b(0.0, 0.6)],
+            vec![b(2.0, 0.7)],
+        ];
+        let ap = average_precision_ignoring(&dets, &truth, &ignore, 0.5);
+        assert!((ap - 2.0 / 3.0).abs() < 1e-9, "{ap}");
+        let dets = vec![vec![b(1.0, 0.9), b(200.0, 0.8)], vec![b(2.0, 0.7)]];
+        let ap = average_precision_ignoring(&dets, &truth, &ignore, 0.5);
+        // 0.9 TP (1, 1/3), 0.8 FP (1/2), 0.7 TP (2/3, 2/3): 1/3 + 1/3 · 2/3 = 5/9.
+        assert!((ap - 5.0 / 9.0).abs() < 1e-9, "{ap}");
     }
 }

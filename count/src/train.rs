@@ -24,7 +24,7 @@ use crate::boxes::Detection;
 use crate::count::{CountConfig, Counter};
 use crate::detector::{Detector, to_chw};
 use crate::error::{CountError, Result};
-use crate::eval::average_precision;
+use crate::eval::average_precision_ignoring;
 use crate::export::export_detector;
 use crate::frames::read_image;
 use crate::model::{DetectorNet, DetectorNetConfig, STRIDE};
@@ -84,7 +84,11 @@ impl Default for TrainConfig {
 #[derive(Clone, Debug)]
 pub struct Sample {
     pub image: RgbImage,
+    /// The labelled (detectable) fish.
     pub boxes: Vec<Detection>,
+    /// Fish in view that the renderer found too faint to label (contrast
+    /// below its `--min-contrast`): neither positives nor negatives.
+    pub ignore: Vec<Detection>,
     pub clip: String,
 }
 
@@ -139,7 +143,25 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                 .unwrap_or_default();
             let raw = median_blur(&read_image(&file)?, cfg.median);
             let lens = &im["lens"];
-            let (image, boxes) = if lens["model"] == "fisheye" {
+            let ids: HashSet<u16> = anns
+                .iter()
+                .filter_map(|a| a["fish_id"].as_u64().map(|f| f as u16 + 1))
+                .collect();
+            let mask_file = dir.join(
+                im["file_name"]
+                    .as_str()
+                    .unwrap_or_default()
+                    .replace("images/", "masks/")
+                    .rsplit_once('.')
+                    .map(|(s, _)| format!("{s}.png"))
+                    .unwrap_or_default(),
+            );
+            let read_mask = || -> Result<image::ImageBuffer<image::Luma<u16>, Vec<u16>>> {
+                Ok(image::open(&mask_file)
+                    .map_err(|e| dataset_err(&mask_file, e.to_string()))?
+                    .into_luma16())
+            };
+            let (image, boxes, ignore) = if lens["model"] == "fisheye" {
                 let theta_max = lens["theta_max"].as_f64().unwrap_or(0.0) as f32;
                 let fov = 2.0 * theta_max.to_degrees();
                 let (w, h) = raw.dimensions();
@@ -148,26 +170,11 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                     .or_insert_with(|| {
                         PerspectiveView::new(w, h, fov, cfg.view_fov_deg, cfg.view_size)
                     });
-                let mask_file = dir.join(
-                    im["file_name"]
-                        .as_str()
-                        .unwrap_or_default()
-                        .replace("images/", "masks/")
-                        .rsplit_once('.')
-                        .map(|(s, _)| format!("{s}.png"))
-                        .unwrap_or_default(),
-                );
-                let mask = image::open(&mask_file)
-                    .map_err(|e| dataset_err(&mask_file, e.to_string()))?
-                    .into_luma16();
-                let ids: HashSet<u16> = anns
-                    .iter()
-                    .filter_map(|a| a["fish_id"].as_u64().map(|f| f as u16 + 1))
-                    .collect();
-                let seen = view.apply_mask(mask.as_raw());
+                let seen = view.apply_mask(read_mask()?.as_raw());
                 (
                     view.apply(&raw),
                     boxes_of_mask(&seen, view.size, view.size, &ids),
+                    faint_boxes(&seen, view.size, view.size, &ids),
                 )
             } else {
                 let boxes = anns
@@ -187,15 +194,22 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                         })
                     })
                     .collect();
-                (raw, boxes)
+                let (w, h) = raw.dimensions();
+                let ignore = if mask_file.is_file() {
+                    faint_boxes(read_mask()?.as_raw(), w, h, &ids)
+                } else {
+                    Vec::new()
+                };
+                (raw, boxes, ignore)
             };
-            let boxes: Vec<Detection> = boxes
+            // A labelled fish under 2 px is ignored too: not a fish to find.
+            let (boxes, small): (Vec<Detection>, Vec<Detection>) = boxes
                 .into_iter()
-                .filter(|b| b.x1 - b.x0 >= 2.0 && b.y1 - b.y0 >= 2.0)
-                .collect();
+                .partition(|b| b.x1 - b.x0 >= 2.0 && b.y1 - b.y0 >= 2.0);
             let sample = Sample {
                 image,
                 boxes,
+                ignore: ignore.into_iter().chain(small).collect(),
                 clip: format!("{}#{}", dir.display(), im["clip"]),
             };
             if split == "val" {
@@ -243,6 +257,17 @@ pub fn boxes_of_mask(mask: &[u16], w: u32, h: u32, ids: &HashSet<u16>) -> Vec<De
         .collect()
 }
 
+/// Boxes of the fish in a mask that are not in `labelled` (in view, too faint
+/// to label).
+pub fn faint_boxes(mask: &[u16], w: u32, h: u32, labelled: &HashSet<u16>) -> Vec<Detection> {
+    let others: HashSet<u16> = mask
+        .iter()
+        .copied()
+        .filter(|&id| id != 0 && !labelled.contains(&id))
+        .collect();
+    boxes_of_mask(mask, w, h, &others)
+}
+
 /// SplitMix64 for crops and flips.
 struct Rng(u64);
 impl Rng {
@@ -258,9 +283,22 @@ impl Rng {
     }
 }
 
-/// Training targets of one crop (grid `g × g`): heatmap `[g²]`, boxes
-/// `[4·g²]`, centre mask `[4·g²]` (1 at the centre cells, in all 4 channels).
-pub fn targets(boxes: &[Detection], crop: u32) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+/// Training targets of one crop (grid `g × g`).
+pub struct Targets {
+    /// Heatmap `[g²]`: a Gaussian at each labelled fish, 1 at its centre cell.
+    pub heat: Vec<f32>,
+    /// Boxes `[4·g²]` at the centre cells (offset x, y; ln w/8, ln h/8).
+    pub reg: Vec<f32>,
+    /// 1 at the centre cells, in all 4 channels `[4·g²]`.
+    pub mask: Vec<f32>,
+    /// Weight of each cell's negative (background) loss `[g²]`: 0 on the cells
+    /// an ignored (faint) fish covers, 1 elsewhere. A labelled fish's centre
+    /// cell keeps its positive loss even there.
+    pub weight: Vec<f32>,
+}
+
+/// The targets of a crop's labelled fish `boxes` and ignored fish `ignore`.
+pub fn targets(boxes: &[Detection], ignore: &[Detection], crop: u32) -> Targets {
     let g = (crop as usize) / STRIDE;
     let s = STRIDE as f32;
     let (mut heat, mut reg, mut mask) = (
@@ -268,6 +306,19 @@ pub fn targets(boxes: &[Detection], crop: u32) -> (Vec<f32>, Vec<f32>, Vec<f32>)
         vec![0f32; 4 * g * g],
         vec![0f32; 4 * g * g],
     );
+    let mut weight = vec![1f32; g * g];
+    for b in ignore {
+        let cells = |lo: f32, hi: f32| {
+            let a = (lo / s).floor().max(0.0) as usize;
+            let z = ((hi / s).ceil().max(0.0) as usize).min(g);
+            a..z
+        };
+        for y in cells(b.y0, b.y1) {
+            for x in cells(b.x0, b.x1) {
+                weight[y * g + x] = 0.0;
+            }
+        }
+    }
     for b in boxes {
         let (cx, cy) = ((b.x0 + b.x1) / 2.0 / s, (b.y0 + b.y1) / 2.0 / s);
         if !(cx >= 0.0 && cy >= 0.0 && cx < g as f32 && cy < g as f32) {
@@ -303,38 +354,63 @@ pub fn targets(boxes: &[Detection], crop: u32) -> (Vec<f32>, Vec<f32>, Vec<f32>)
             mask[c * plane + k] = 1.0;
         }
     }
-    (heat, reg, mask)
+    Targets {
+        heat,
+        reg,
+        mask,
+        weight,
+    }
 }
 
 /// A random `crop × crop` piece of a sample (zero-padded), maybe mirrored,
-/// with the boxes whose centre it holds.
-fn random_crop(s: &Sample, crop: u32, rng: &mut Rng) -> (RgbImage, Vec<Detection>) {
+/// with its labelled and ignored boxes. Half the crops hold a labelled fish
+/// drawn at random, anywhere in the crop: a bottom camera's school fills a
+/// small part of the view, and uniform crops were mostly empty water.
+fn random_crop(s: &Sample, crop: u32, rng: &mut Rng) -> (RgbImage, Vec<Detection>, Vec<Detection>) {
     let (w, h) = s.image.dimensions();
-    let x = rng.below(w.saturating_sub(crop) as u64 + 1) as u32;
-    let y = rng.below(h.saturating_sub(crop) as u64 + 1) as u32;
+    let (max_x, max_y) = (w.saturating_sub(crop), h.saturating_sub(crop));
+    let (x, y) = if !s.boxes.is_empty() && rng.next() & 1 == 1 {
+        let b = &s.boxes[rng.below(s.boxes.len() as u64) as usize];
+        let (cx, cy) = (((b.x0 + b.x1) / 2.0) as u32, ((b.y0 + b.y1) / 2.0) as u32);
+        // A corner within `crop` to the left of / above the centre.
+        let pick = |c: u32, max: u32, rng: &mut Rng| {
+            let lo = c.saturating_sub(crop - 1).min(max);
+            let hi = c.min(max);
+            lo + rng.below((hi - lo) as u64 + 1) as u32
+        };
+        (pick(cx, max_x, rng), pick(cy, max_y, rng))
+    } else {
+        (
+            rng.below(max_x as u64 + 1) as u32,
+            rng.below(max_y as u64 + 1) as u32,
+        )
+    };
     let mut img = crate::windows::crop(&s.image, crate::windows::Window { x, y }, crop);
-    let mut boxes: Vec<Detection> = s
-        .boxes
-        .iter()
-        .map(|b| b.scaled_shifted(1.0, -(x as f32), -(y as f32)))
-        .collect();
+    let shift = |v: &[Detection]| -> Vec<Detection> {
+        v.iter()
+            .map(|b| b.scaled_shifted(1.0, -(x as f32), -(y as f32)))
+            .collect()
+    };
+    let (mut boxes, mut ignore) = (shift(&s.boxes), shift(&s.ignore));
     if rng.next() & 1 == 1 {
         image::imageops::flip_horizontal_in_place(&mut img);
         let c = crop as f32;
-        for b in &mut boxes {
+        for b in boxes.iter_mut().chain(ignore.iter_mut()) {
             (b.x0, b.x1) = (c - b.x1, c - b.x0);
         }
     }
-    (img, boxes)
+    (img, boxes, ignore)
 }
 
-/// CenterNet's loss of a batch: `(total, focal, box)`.
+/// CenterNet's loss of a batch: `(total, focal, box)`; `weight` scales each
+/// cell's negative term ([`Targets::weight`]).
 pub fn loss(
     heat_logits: Tensor<4>,
     boxes: Tensor<4>,
     heat_t: Tensor<4>,
     box_t: Tensor<4>,
     mask: Tensor<4>,
+    weight: Tensor<4>,
 ) -> (Tensor<1>, Tensor<1>, Tensor<1>) {
     let pos = heat_t.clone().greater_equal_elem(0.9999).float();
     let n = pos.clone().sum().clamp_min(1.0);
@@ -343,7 +419,7 @@ pub fn loss(
     let log_1p = log_sigmoid(heat_logits.neg());
     let one_minus_p = p.clone().neg().add_scalar(1.0);
     let pos_term = log_p * one_minus_p.clone().powf_scalar(2.0) * pos.clone();
-    let neg_w = heat_t.neg().add_scalar(1.0).powf_scalar(4.0) * pos.neg().add_scalar(1.0);
+    let neg_w = heat_t.neg().add_scalar(1.0).powf_scalar(4.0) * pos.neg().add_scalar(1.0) * weight;
     let neg_term = log_1p * p.powf_scalar(2.0) * neg_w;
     let focal = (pos_term.sum() + neg_term.sum()).neg() / n.clone();
     let l1 = ((boxes - box_t).abs() * mask).sum() / n;
@@ -404,21 +480,29 @@ pub fn train(
         if cfg.minutes > 0.0 && start.elapsed().as_secs_f64() > cfg.minutes * 60.0 {
             break;
         }
-        let (mut x, mut ht, mut bt, mut mk) = (vec![], vec![], vec![], vec![]);
+        let (mut x, mut ht, mut bt, mut mk, mut wt) = (vec![], vec![], vec![], vec![], vec![]);
         for _ in 0..b {
             let s = &data.train[rng.below(data.train.len() as u64) as usize];
-            let (img, boxes) = random_crop(s, cfg.crop, &mut rng);
+            let (img, boxes, ignore) = random_crop(s, cfg.crop, &mut rng);
             x.extend(to_chw(&img));
-            let (h, r, m) = targets(&boxes, cfg.crop);
-            ht.extend(h);
-            bt.extend(r);
-            mk.extend(m);
+            let t = targets(&boxes, &ignore, cfg.crop);
+            ht.extend(t.heat);
+            bt.extend(t.reg);
+            mk.extend(t.mask);
+            wt.extend(t.weight);
         }
         let t = |v: Vec<f32>, ch: usize, side: usize| {
             Tensor::<4>::from_data(TensorData::new(v, [b, ch, side, side]), &dev)
         };
         let (heat, boxes) = model.forward(t(x, 3, c));
-        let (total, focal, l1) = loss(heat, boxes, t(ht, 1, g), t(bt, 4, g), t(mk, 4, g));
+        let (total, focal, l1) = loss(
+            heat,
+            boxes,
+            t(ht, 1, g),
+            t(bt, 4, g),
+            t(mk, 4, g),
+            t(wt, 1, g),
+        );
         let value = total.clone().into_scalar::<f32>() as f64;
         if !value.is_finite() {
             return Err(CountError::Train(format!(
@@ -546,7 +630,7 @@ pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<Ev
         ..cfg.clone()
     };
     let counter = Counter::new(low, detector)?;
-    let (mut dets, mut truth, mut err, mut tot) = (vec![], vec![], 0.0, 0.0);
+    let (mut dets, mut truth, mut ignore, mut err, mut tot) = (vec![], vec![], vec![], 0.0, 0.0);
     let mut clips: Vec<ClipCount> = Vec::new();
     for s in samples {
         let (d, _) = counter.detect(&s.image)?;
@@ -569,13 +653,14 @@ pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<Ev
         }
         dets.push(d);
         truth.push(s.boxes.clone());
+        ignore.push(s.ignore.clone());
     }
     for c in &mut clips {
         c.relative_error = (c.estimate as f64 - c.truth_max as f64) / (c.truth_max.max(1)) as f64;
     }
     let k = samples.len().max(1) as f64;
     Ok(Evaluation {
-        map50: average_precision(&dets, &truth, 0.5),
+        map50: average_precision_ignoring(&dets, &truth, &ignore, 0.5),
         count_mae: err / k,
         truth_mean: tot / k,
         clips,
@@ -592,7 +677,13 @@ mod tests {
     #[test]
     fn targets_by_hand() {
         let b = Detection::from_centre(20.0, 12.0, 16.0, 8.0, 1.0);
-        let (h, r, m) = targets(&[b], 32);
+        let Targets {
+            heat: h,
+            reg: r,
+            mask: m,
+            weight,
+        } = targets(&[b], &[], 32);
+        assert!(weight.iter().all(|&w| w == 1.0));
         let k = 4 + 2;
         assert_eq!(h[k], 1.0);
         assert!((h[k + 1] - (-2f32).exp()).abs() < 1e-6);
@@ -604,8 +695,32 @@ mod tests {
         );
         assert_eq!(m.iter().sum::<f32>(), 4.0);
         // A centre outside the crop gives nothing.
-        let (h, _, m) = targets(&[Detection::from_centre(40.0, 5.0, 8.0, 8.0, 1.0)], 32);
-        assert!(h.iter().all(|&v| v == 0.0) && m.iter().all(|&v| v == 0.0));
+        let t = targets(&[Detection::from_centre(40.0, 5.0, 8.0, 8.0, 1.0)], &[], 32);
+        assert!(t.heat.iter().all(|&v| v == 0.0) && t.mask.iter().all(|&v| v == 0.0));
+        // A faint fish over x 0–10, y 17–23 covers cells x 0–1, y 2 (cell k = 8, 9):
+        // their negative loss is off; one over the labelled fish's centre cell
+        // (2, 1) = 6 turns its negative term off, not its positive one.
+        let faint = Detection {
+            x0: 0.0,
+            y0: 17.0,
+            x1: 10.0,
+            y1: 23.0,
+            score: 1.0,
+        };
+        let t = targets(&[b], &[faint], 32);
+        let off: Vec<usize> = (0..16).filter(|&k| t.weight[k] == 0.0).collect();
+        assert_eq!(off, vec![8, 9]);
+        let over = Detection {
+            x0: 17.0,
+            y0: 9.0,
+            x1: 23.0,
+            y1: 15.0,
+            score: 1.0,
+        };
+        let t = targets(&[b], &[over], 32);
+        let off: Vec<usize> = (0..16).filter(|&k| t.weight[k] == 0.0).collect();
+        assert_eq!(off, vec![6]);
+        assert_eq!((t.heat[6], t.mask[6]), (1.0, 1.0));
     }
 
     #[test]
@@ -617,5 +732,9 @@ mod tests {
         assert_eq!(b.len(), 2);
         assert_eq!((b[0].x0, b[0].y0, b[0].x1, b[0].y1), (1.0, 0.0, 3.0, 2.0));
         assert_eq!((b[1].x0, b[1].y0, b[1].x1, b[1].y1), (4.0, 2.0, 5.0, 3.0));
+        // The fish in view but not labelled: id 3 alone.
+        let f = faint_boxes(&mask, 5, 3, &ids);
+        assert_eq!(f.len(), 1);
+        assert_eq!((f[0].x0, f[0].y0, f[0].x1, f[0].y1), (4.0, 0.0, 5.0, 1.0));
     }
 }

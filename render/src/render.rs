@@ -54,9 +54,12 @@ pub struct RenderConfig {
     pub tail_beat: bool,
     /// A fish is *detectable* (labelled in YOLO and COCO) when it has visible
     /// pixels and its mean contrast against the water behind it is at least
-    /// this (0–1 of the 8-bit range); 0.01 ≈ 2.5 grey levels, about where a
-    /// faint fish can still be made out in a frame. Fish lost in turbid water
-    /// or darkness keep their entry in the frame JSON only.
+    /// this (0–1 of the 8-bit range); 0.03 ≈ 8 grey levels. Measured: a
+    /// randomised bottom-fisheye frame of `coho_default` labelled 44 fish at
+    /// 0.01, the strongest at 0.028, and none could be made out in its JPEG;
+    /// in clear water (`seabream_50`) fish range 0.03–0.19 (median 0.10), all
+    /// plainly visible. Fish lost in turbid water or darkness keep their entry
+    /// in the frame JSON and the mask (a detector's trainer ignores them).
     pub min_contrast: f32,
 }
 
@@ -69,7 +72,7 @@ impl Default for RenderConfig {
             exposure_stops: 2.0,
             exposure: 1.2,
             tail_beat: true,
-            min_contrast: 0.01,
+            min_contrast: 0.03,
         }
     }
 }
