@@ -43,11 +43,11 @@ impl BehaviourSpec {
 /// checked before anything else is loaded or allocated.
 fn check_sizes(file: &SceneFile, path: &Path) -> Result<(), ConfigError> {
     let n_groups = file.groups.len() as u64;
-    limits::check_count(path, "group", n_groups, limits::MAX_GROUPS as u64, "groups")?;
+    crate::config::check_count(path, "group", n_groups, limits::MAX_GROUPS as u64, "groups")?;
     let max = limits::MAX_FISH as u64;
     let mut total = 0u64;
     for (gi, g) in file.groups.iter().enumerate() {
-        limits::check_count(
+        crate::config::check_count(
             path,
             &format!("group[{gi}].count"),
             g.count as u64,
@@ -65,9 +65,9 @@ fn check_sizes(file: &SceneFile, path: &Path) -> Result<(), ConfigError> {
             limit: format!("{max} fish in a scene"),
         });
     }
-    limits::cage(&file.cage, path)?;
-    limits::obstacles(&file.obstacles, path)?;
-    limits::physics(&file.physics, path)
+    crate::config::cage_bounds(&file.cage, path)?;
+    crate::config::obstacle_bounds(&file.obstacles, path)?;
+    crate::config::physics_bounds(&file.physics, path)
 }
 
 /// A fully loaded scene.
@@ -268,7 +268,7 @@ impl Scene {
             ));
         }
         for b in &self.behaviours {
-            limits::steps_per_decision(
+            crate::config::steps_per_decision(
                 p.dt_sim,
                 b.species.decision_interval,
                 &b.species.name,

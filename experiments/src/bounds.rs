@@ -3,7 +3,7 @@
 //! message instead of running for a week or exhausting memory.
 
 use anyhow::{Result, bail};
-use deepfoids_env::limits::number;
+use deepfoids_env::config::number;
 use std::path::Path;
 
 /// `value` of option `flag` must be positive, finite and at most `max` (in `unit`).

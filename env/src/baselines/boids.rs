@@ -65,9 +65,9 @@ impl Default for BoidsConfig {
 impl BoidsConfig {
     /// Read `path`; every value within [`crate::limits`].
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        use crate::limits::Param::{Bl, Speed, Weight};
+        use crate::config::Param::{Bl, Speed, Weight};
         let c: Self = read_toml(path)?;
-        crate::limits::params(
+        crate::config::params(
             path,
             &[
                 ("perception", Bl(c.perception)),

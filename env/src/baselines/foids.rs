@@ -111,9 +111,9 @@ impl Default for FoidsConfig {
 impl FoidsConfig {
     /// Read `path`; every value within [`crate::limits`].
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        use crate::limits::Param::{Bl, Degrees, Share, Speed, Weight};
+        use crate::config::Param::{Bl, Degrees, Share, Speed, Weight};
         let c: Self = read_toml(path)?;
-        crate::limits::params(
+        crate::config::params(
             path,
             &[
                 ("separation_range", Bl(c.separation_range)),

@@ -17,10 +17,13 @@
 //! | `rewards/<profile>/<phase>.toml` | [`RewardWeights`] with timing, contacts and extensions | `rewards` |
 //!
 //! `range` holds [`Range`], the fixed-or-drawn value they share; `read` reads a
-//! file, applies a scene's overrides and says serde's errors plainly. This file
-//! holds what every kind shares: [`ConfigError`], [`Overrides`] and
+//! file, applies a scene's [`Overrides`] and says serde's errors plainly;
+//! `error` holds [`ConfigError`]; `check` the bounds helpers every kind's
+//! checks use, with the limits of [`crate::limits`]. This file holds
 //! [`ConfigDirs`], the root folder that finds and loads each kind.
 
+mod check;
+mod error;
 mod range;
 mod read;
 mod rewards;
@@ -28,210 +31,23 @@ mod scene;
 mod site;
 mod species;
 
+pub use check::number;
+pub(crate) use check::{Param, check_count, params};
+pub use error::ConfigError;
 pub use range::Range;
-pub use read::read_toml;
+pub use read::{Overrides, read_toml};
 pub use rewards::{
     ActionTiming, Contacts, Extensions, NeighbourForm, Phase, RewardTiming, RewardWeights, Timing,
 };
 pub use scene::{
     CageConfig, Clock, GroupConfig, ObstacleConfig, PhysicsConfig, SceneFile, parse_clock,
 };
+pub(crate) use scene::{cage_bounds, obstacle_bounds, physics_bounds, steps_per_decision};
 pub use site::SiteConfig;
 pub use species::{SizeClass, SpeciesConfig};
 
 use read::load_with;
 use std::path::{Path, PathBuf};
-
-/// Everything that can go wrong while reading configuration. (An I/O error
-/// is part of the message, not a `source`, so that a chain printed with
-/// `{:#}` says the cause once.)
-#[derive(Debug, thiserror::Error)]
-pub enum ConfigError {
-    #[error("cannot read {path}: {error}")]
-    Io {
-        path: PathBuf,
-        error: std::io::Error,
-    },
-    #[error("{path}: {message}")]
-    Parse { path: PathBuf, message: String },
-    #[error("{path}: field `{field}`: {message}")]
-    Invalid {
-        path: PathBuf,
-        field: String,
-        message: String,
-    },
-    /// A value beyond its bound of [`crate::limits`].
-    #[error("{path}: {field} = {value} is {} the limit of {limit}", if *above { "above" } else { "below" })]
-    Limit {
-        path: PathBuf,
-        field: String,
-        value: String,
-        above: bool,
-        limit: String,
-    },
-    #[error(
-        "unknown {what} `{name}` (looked for {path}); {}",
-        listing(path, available)
-    )]
-    Unknown {
-        what: &'static str,
-        name: String,
-        path: PathBuf,
-        available: Vec<String>,
-    },
-    /// A folder where a configuration file belongs (`species/x.toml/`).
-    #[error("{path} is a folder, not a TOML file")]
-    NotAFile { path: PathBuf },
-    /// The configuration root (`--configs`) is missing or not a folder.
-    #[error(
-        "the configuration folder {root} {}; it should hold species/, sites/, scenes/, rewards/ and train/",
-        if root.exists() { "is not a folder" } else { "does not exist" }
-    )]
-    NoRoot { root: PathBuf },
-}
-
-/// What an [`ConfigError::Unknown`] could have been: the names beside `path`,
-/// or that its folder holds none.
-fn listing(path: &Path, available: &[String]) -> String {
-    if !available.is_empty() {
-        return format!("available: {}", available.join(", "));
-    }
-    let dir = if path.extension().is_some() {
-        path.parent().unwrap_or(path)
-    } else {
-        path
-    };
-    if dir.is_dir() {
-        format!("{} holds none", dir.display())
-    } else {
-        format!("{} does not exist", dir.display())
-    }
-}
-
-impl ConfigError {
-    /// `field = value` of `path` must lie in `[lo, hi]` (NaN does not).
-    pub fn check_within(
-        path: &Path,
-        field: &str,
-        value: f32,
-        lo: f32,
-        hi: f32,
-    ) -> Result<(), Self> {
-        if (lo..=hi).contains(&value) {
-            return Ok(());
-        }
-        Err(Self::invalid(
-            path,
-            field,
-            format!("must lie in [{lo}, {hi}]"),
-        ))
-    }
-
-    pub fn invalid(path: &Path, field: impl Into<String>, message: impl Into<String>) -> Self {
-        ConfigError::Invalid {
-            path: path.to_path_buf(),
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-
-    /// The message without the file it names.
-    fn detail(&self) -> String {
-        match self {
-            ConfigError::Io { error, .. } => error.to_string(),
-            ConfigError::Parse { message, .. } => message.clone(),
-            ConfigError::Invalid { field, message, .. } => format!("field `{field}`: {message}"),
-            ConfigError::Limit {
-                field,
-                value,
-                above,
-                limit,
-                ..
-            } => format!(
-                "{field} = {value} is {} the limit of {limit}",
-                if *above { "above" } else { "below" }
-            ),
-            ConfigError::Unknown { .. }
-            | ConfigError::NotAFile { .. }
-            | ConfigError::NoRoot { .. } => self.to_string(),
-        }
-    }
-}
-
-/// Values a scene file overrides in a species or site file, and where they are
-/// written, so that an error they cause names the scene file.
-#[derive(Clone, Copy, Debug)]
-pub struct Overrides<'a> {
-    /// The scene file that holds them.
-    pub file: &'a Path,
-    /// Their table in that file, e.g. `species_overrides.coho`.
-    pub section: &'a str,
-    pub table: &'a toml::Table,
-}
-
-impl Overrides<'_> {
-    /// Whether the overrides set `field` (`a.b.c`, `a[1]`) or a table above it.
-    fn hold(&self, field: &str) -> bool {
-        let mut table = self.table;
-        for key in field.split('.') {
-            let key = key.split('[').next().unwrap_or(key);
-            match table.get(key) {
-                Some(toml::Value::Table(t)) => table = t,
-                Some(_) => return true,
-                None => return false,
-            }
-        }
-        true
-    }
-
-    /// Point an error of the file at `base` (merged with these overrides) at the
-    /// scene file when an override caused it: the field it names is overridden,
-    /// or `base` alone passes. `loads(key)` says whether `base` with only the
-    /// override `key` (`None`: none) loads; the first key that breaks it is named.
-    fn blame(
-        &self,
-        e: ConfigError,
-        base: &Path,
-        loads: impl Fn(Option<&str>) -> bool,
-    ) -> ConfigError {
-        let in_scene = |field: &str| format!("{}.{field}", self.section);
-        match e {
-            ConfigError::Invalid { field, message, .. } if self.hold(&field) => {
-                ConfigError::Invalid {
-                    path: self.file.to_path_buf(),
-                    field: in_scene(&field),
-                    message,
-                }
-            }
-            ConfigError::Limit {
-                field,
-                value,
-                above,
-                limit,
-                ..
-            } if self.hold(&field) => ConfigError::Limit {
-                path: self.file.to_path_buf(),
-                field: in_scene(&field),
-                value,
-                above,
-                limit,
-            },
-            e @ (ConfigError::Io { .. }
-            | ConfigError::Unknown { .. }
-            | ConfigError::NotAFile { .. }
-            | ConfigError::NoRoot { .. }) => e,
-            e if loads(None) => ConfigError::Invalid {
-                path: self.file.to_path_buf(),
-                field: match self.table.keys().find(|k| !loads(Some(k))) {
-                    Some(key) => in_scene(key),
-                    None => self.section.to_string(),
-                },
-                message: format!("{} (applied to {})", e.detail(), base.display()),
-            },
-            e => e,
-        }
-    }
-}
 
 /// The root folder of the TOML configuration.
 #[derive(Clone, Debug)]
@@ -413,7 +229,7 @@ impl ConfigDirs {
             phase.as_str(),
         )?;
         let weights: RewardWeights = read_toml(&path)?;
-        crate::limits::rewards(&weights, &path)?;
+        weights.check_bounds(&path)?;
         Ok(weights)
     }
 }

@@ -1,6 +1,6 @@
 //! [`Range`]: a value fixed or drawn per fish, as species and scene files write it.
 
-use super::ConfigError;
+use super::error::ConfigError;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::Path;

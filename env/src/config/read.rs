@@ -2,9 +2,84 @@
 //! overrides merged in, and serde's errors said with the file, line, field and
 //! the numbers a field allows.
 
-use super::{ConfigError, Overrides};
+use super::error::ConfigError;
 use std::io::Read;
 use std::path::Path;
+
+/// Values a scene file overrides in a species or site file, and where they are
+/// written, so that an error they cause names the scene file.
+#[derive(Clone, Copy, Debug)]
+pub struct Overrides<'a> {
+    /// The scene file that holds them.
+    pub file: &'a Path,
+    /// Their table in that file, e.g. `species_overrides.coho`.
+    pub section: &'a str,
+    pub table: &'a toml::Table,
+}
+
+impl Overrides<'_> {
+    /// Whether the overrides set `field` (`a.b.c`, `a[1]`) or a table above it.
+    fn hold(&self, field: &str) -> bool {
+        let mut table = self.table;
+        for key in field.split('.') {
+            let key = key.split('[').next().unwrap_or(key);
+            match table.get(key) {
+                Some(toml::Value::Table(t)) => table = t,
+                Some(_) => return true,
+                None => return false,
+            }
+        }
+        true
+    }
+
+    /// Point an error of the file at `base` (merged with these overrides) at the
+    /// scene file when an override caused it: the field it names is overridden,
+    /// or `base` alone passes. `loads(key)` says whether `base` with only the
+    /// override `key` (`None`: none) loads; the first key that breaks it is named.
+    fn blame(
+        &self,
+        e: ConfigError,
+        base: &Path,
+        loads: impl Fn(Option<&str>) -> bool,
+    ) -> ConfigError {
+        let in_scene = |field: &str| format!("{}.{field}", self.section);
+        match e {
+            ConfigError::Invalid { field, message, .. } if self.hold(&field) => {
+                ConfigError::Invalid {
+                    path: self.file.to_path_buf(),
+                    field: in_scene(&field),
+                    message,
+                }
+            }
+            ConfigError::Limit {
+                field,
+                value,
+                above,
+                limit,
+                ..
+            } if self.hold(&field) => ConfigError::Limit {
+                path: self.file.to_path_buf(),
+                field: in_scene(&field),
+                value,
+                above,
+                limit,
+            },
+            e @ (ConfigError::Io { .. }
+            | ConfigError::Unknown { .. }
+            | ConfigError::NotAFile { .. }
+            | ConfigError::NoRoot { .. }) => e,
+            e if loads(None) => ConfigError::Invalid {
+                path: self.file.to_path_buf(),
+                field: match self.table.keys().find(|k| !loads(Some(k))) {
+                    Some(key) => in_scene(key),
+                    None => self.section.to_string(),
+                },
+                message: format!("{} (applied to {})", e.detail(), base.display()),
+            },
+            e => e,
+        }
+    }
+}
 
 /// Read and deserialize a TOML file of at most [`crate::limits::MAX_CONFIG_BYTES`];
 /// errors name the file, line and field.

@@ -2,7 +2,11 @@
 //! with the profile's [`Timing`], [`Contacts`] and [`Extensions`], and the
 //! [`Phase`] that picks the file.
 
+use super::check::{BL, SPEED, WEIGHT, check, check_count};
+use super::error::ConfigError;
+use crate::limits::MAX_NEIGHBOUR_CAP;
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 
 /// The training phase, which picks the reward weights (thesis §4.5.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -201,4 +205,55 @@ pub struct RewardWeights {
     /// SPEC §6.2's extensions (all off by default).
     #[serde(default)]
     pub extensions: Extensions,
+}
+
+impl RewardWeights {
+    /// The bounds of a reward-weights file.
+    pub(crate) fn check_bounds(&self, path: &Path) -> Result<(), ConfigError> {
+        let r = self;
+        let fields = [
+            ("boundary_collision", r.boundary_collision),
+            ("w_nc", r.w_nc),
+            ("w_bd", r.w_bd),
+            ("w_nd", r.w_nd),
+            ("w_r", r.w_r),
+            ("w_s", r.w_s),
+            ("pitch_penalty", r.pitch_penalty),
+            ("movement_bonus", r.movement_bonus),
+            ("w_agg", r.w_agg),
+            ("w_tar", r.w_tar),
+            ("catch_bonus", r.catch_bonus),
+            (
+                "extensions.personal_space_penalty",
+                r.extensions.personal_space_penalty,
+            ),
+        ];
+        for (field, v) in fields {
+            check(path, field, v, WEIGHT, "")?;
+        }
+        let cap = MAX_NEIGHBOUR_CAP;
+        check_count(
+            path,
+            "neighbour_cap",
+            r.neighbour_cap as u64,
+            cap as u64,
+            "neighbours (0: every neighbour)",
+        )?;
+        check(
+            path,
+            "timing.turn_step_deg",
+            r.timing.turn_step_deg,
+            [0.0, 90.0],
+            "°",
+        )?;
+        check(path, "contacts.kick", r.contacts.kick, SPEED, "m/s")?;
+        check(path, "contacts.push", r.contacts.push, SPEED, "m/s")?;
+        check(
+            path,
+            "extensions.personal_space_bl",
+            r.extensions.personal_space_bl,
+            BL,
+            "BL",
+        )
+    }
 }

@@ -2,7 +2,12 @@
 //! groups and physics, and the [`Clock`] its date and time give
 //! ([`parse_clock`]). [`crate::scene`] resolves a scene file into a scene.
 
-use super::{ConfigError, Range};
+use super::check::{BL, SPEED, check, check_count, number};
+use super::error::ConfigError;
+use super::range::Range;
+use crate::limits::{
+    MAX_CAGE_M, MAX_CHASE_TIMEOUT_S, MAX_EPISODE_DECISIONS, MAX_OBSTACLES, MAX_STEPS_PER_DECISION,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -181,6 +186,119 @@ pub fn parse_clock(path: &Path, date: &str, time: &str, runs: bool) -> Result<Cl
         start_hours: h as f32 + m as f32 / 60.0,
         runs,
     })
+}
+
+/// The bounds of a scene's cage.
+pub(crate) fn cage_bounds(c: &CageConfig, path: &Path) -> Result<(), ConfigError> {
+    let m = [0.0, MAX_CAGE_M];
+    match *c {
+        CageConfig::Cube { edge } => check(path, "cage.edge", edge, m, "m"),
+        CageConfig::Box {
+            width,
+            length,
+            height,
+        } => {
+            check(path, "cage.width", width, m, "m")?;
+            check(path, "cage.length", length, m, "m")?;
+            check(path, "cage.height", height, m, "m")
+        }
+        CageConfig::Octagon { edge, height } => {
+            check(path, "cage.edge", edge, m, "m")?;
+            check(path, "cage.height", height, m, "m")
+        }
+    }
+}
+
+/// The bounds of a scene's obstacles (their centres must lie in the cage, checked elsewhere).
+pub(crate) fn obstacle_bounds(
+    obstacles: &[ObstacleConfig],
+    path: &Path,
+) -> Result<(), ConfigError> {
+    check_count(
+        path,
+        "obstacle",
+        obstacles.len() as u64,
+        MAX_OBSTACLES as u64,
+        "obstacles",
+    )?;
+    let m = [-(MAX_CAGE_M), MAX_CAGE_M];
+    for (i, o) in obstacles.iter().enumerate() {
+        let (radius, coords): (f32, Vec<f32>) = match *o {
+            ObstacleConfig::Sphere { center, radius } => (radius, center.to_vec()),
+            ObstacleConfig::Cylinder { center, radius, y } => {
+                (radius, vec![center[0], center[1], y[0], y[1]])
+            }
+        };
+        check(path, &format!("obstacle[{i}].radius"), radius, m, "m")?;
+        for c in coords {
+            check(path, &format!("obstacle[{i}]"), c, m, "m")?;
+        }
+    }
+    Ok(())
+}
+
+/// The bounds of a scene's `[physics]` that do not depend on the species.
+pub(crate) fn physics_bounds(p: &PhysicsConfig, path: &Path) -> Result<(), ConfigError> {
+    check(
+        path,
+        "physics.max_turn_deg",
+        p.max_turn_deg,
+        [0.0, 180.0],
+        "°",
+    )?;
+    check(
+        path,
+        "physics.pitch_threshold_deg",
+        p.pitch_threshold_deg,
+        [0.0, 90.0],
+        "°",
+    )?;
+    check(
+        path,
+        "physics.speed_threshold_bl",
+        p.speed_threshold_bl,
+        SPEED,
+        "BL/s",
+    )?;
+    check_count(
+        path,
+        "physics.max_episode_decisions",
+        p.max_episode_decisions as u64,
+        MAX_EPISODE_DECISIONS as u64,
+        "decisions",
+    )?;
+    check(
+        path,
+        "physics.chase_timeout",
+        p.chase_timeout,
+        [0.0, MAX_CHASE_TIMEOUT_S],
+        "s",
+    )?;
+    check(path, "physics.spawn_margin_bl", p.spawn_margin_bl, BL, "BL")
+}
+
+/// At most [`MAX_STEPS_PER_DECISION`] physics steps per decision of any species.
+pub(crate) fn steps_per_decision(
+    dt_sim: f32,
+    decision_interval: f32,
+    species: &str,
+    path: &Path,
+) -> Result<(), ConfigError> {
+    let k = decision_interval / dt_sim;
+    if k > MAX_STEPS_PER_DECISION {
+        return Err(ConfigError::Limit {
+            path: path.to_path_buf(),
+            field: "physics.dt_sim".into(),
+            value: format!(
+                "{} s (giving {} physics steps per decision of {species})",
+                number(dt_sim),
+                number(k.floor())
+            ),
+            above: true,
+            limit: format!("{MAX_STEPS_PER_DECISION} steps"),
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]

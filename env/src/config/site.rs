@@ -1,6 +1,8 @@
 //! Site files, `sites/<name>.toml`: [`SiteConfig`].
 
-use super::ConfigError;
+use super::check::check;
+use super::error::ConfigError;
+use crate::limits::{MAX_ATTENUATION, MAX_LIGHT_PAR, SURFACE_TEMPERATURE_C};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -62,6 +64,31 @@ impl SiteConfig {
         if self.attenuation.is_nan() || self.attenuation < 0.0 {
             return Err(ConfigError::invalid(path, "attenuation", "must be ≥ 0"));
         }
-        crate::limits::site(self, path)
+        bounds(self, path)
     }
+}
+
+/// The bounds of a site file (after a scene's overrides).
+fn bounds(s: &SiteConfig, path: &Path) -> Result<(), ConfigError> {
+    check(
+        path,
+        "surface_light_max",
+        s.surface_light_max,
+        [0.0, MAX_LIGHT_PAR],
+        "PAR",
+    )?;
+    check(
+        path,
+        "attenuation",
+        s.attenuation,
+        [0.0, MAX_ATTENUATION],
+        "1/m",
+    )?;
+    check(
+        path,
+        "surface_temperature",
+        s.surface_temperature,
+        [SURFACE_TEMPERATURE_C[0], SURFACE_TEMPERATURE_C[1]],
+        "°C",
+    )
 }

@@ -1,6 +1,9 @@
 //! Species files, `species/<name>.toml`: [`SpeciesConfig`] and its [`SizeClass`]es.
 
-use super::{ConfigError, Range};
+use super::check::{BL, LIGHT, SHARE, SPEED, TEMPERATURE, check, check_count, pair, range};
+use super::error::ConfigError;
+use super::range::Range;
+use crate::limits::{MAX_BODY_LENGTH_M, MAX_BODY_SCALE, MAX_DECISION_INTERVAL_S, MAX_SIZE_CLASSES};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -171,6 +174,77 @@ impl SpeciesConfig {
                 ));
             }
         }
-        crate::limits::species(self, path)
+        bounds(self, path)
     }
+}
+
+/// The bounds of a species file (after a scene's overrides).
+fn bounds(s: &SpeciesConfig, path: &Path) -> Result<(), ConfigError> {
+    check(
+        path,
+        "body_length",
+        s.body_length,
+        [0.0, MAX_BODY_LENGTH_M],
+        "m",
+    )?;
+    pair(path, "speed_bl", s.speed_bl, SPEED, "BL/s")?;
+    check(path, "sense_range_bl", s.sense_range_bl, BL, "BL")?;
+    check(
+        path,
+        "decision_interval",
+        s.decision_interval,
+        [0.0, MAX_DECISION_INTERVAL_S],
+        "s",
+    )?;
+    pair(
+        path,
+        "temperature_pref",
+        s.temperature_pref,
+        TEMPERATURE,
+        "°C",
+    )?;
+    pair(
+        path,
+        "temperature_steep",
+        s.temperature_steep,
+        TEMPERATURE,
+        "°C",
+    )?;
+    for (i, c) in s.collider_bl.iter().enumerate() {
+        check(path, &format!("collider_bl[{i}]"), *c, BL, "BL")?;
+    }
+    check(path, "visual_radius_bl", s.visual_radius_bl, BL, "BL")?;
+    check(path, "initial_speed_bl", s.initial_speed_bl, SPEED, "BL/s")?;
+    check(
+        path,
+        "max_delta_speed_bl",
+        s.max_delta_speed_bl,
+        SPEED,
+        "BL/s",
+    )?;
+    pair(path, "light_steep", s.light_steep, LIGHT, "PAR")?;
+    check(path, "dominant_fraction", s.dominant_fraction, SHARE, "")?;
+    for (i, c) in s.colour.iter().enumerate() {
+        check(path, &format!("colour[{i}]"), *c, SHARE, "")?;
+    }
+    check_count(
+        path,
+        "size_classes",
+        s.size_classes.len() as u64,
+        MAX_SIZE_CLASSES as u64,
+        "size classes",
+    )?;
+    for (name, c) in &s.size_classes {
+        let field = |f: &str| format!("size_classes.{name}.{f}");
+        range(
+            path,
+            &field("body_scale"),
+            &c.body_scale,
+            [0.0, MAX_BODY_SCALE],
+            "×",
+        )?;
+        range(path, &field("light_lpref"), &c.light_lpref, LIGHT, "PAR")?;
+        range(path, &field("light_hpref"), &c.light_hpref, LIGHT, "PAR")?;
+    }
+    Ok(())
 }
