@@ -205,13 +205,12 @@ fn personal_space() {
     assert!(close(terms(&env, 0)[ND], 0.5, 2e-3), "{:?}", terms(&env, 0));
 }
 
-/// The same four neighbours as the thesis-sum test of rewards.rs (headings 0°,
-/// 30°, 60°, 90° off; two of them touch, so no kicks here): the mean form
-/// gives 1.5 · (1 + 2/3 + 1/3 + 0)/4 = 0.75.
-#[test]
-fn neighbour_mean() {
+/// r_ND of fish 0 with the four neighbours of the thesis-sum test of
+/// rewards.rs (headings 0°, 30°, 60°, 90° off: terms 1, 2/3, 1/3, 0; two of
+/// them touch, so no kicks here) under `form`.
+fn four_neighbours_nd(form: NeighbourForm) -> f32 {
     let mut s = scene("seabream_default", 5);
-    s.rewards.extensions.neighbour_form = NeighbourForm::Mean;
+    s.rewards.extensions.neighbour_form = form;
     s.rewards.contacts.kick = 0.0;
     s.rewards.contacts.push = 0.0;
     let mut env = calm_env(s);
@@ -226,33 +225,17 @@ fn neighbour_mean() {
     }
     env.observe_now();
     env.step(&zeros(&env)).unwrap();
-    assert!(
-        close(terms(&env, 0)[ND], 0.75, 2e-3),
-        "{:?}",
-        terms(&env, 0)
-    );
+    terms(&env, 0)[ND]
 }
 
-/// The same four neighbours, sqrt form: 1.5 · (1 + 2/3 + 1/3 + 0)/√4 = 1.5.
+/// The mean form: 1.5 · (1 + 2/3 + 1/3 + 0)/4 = 0.75; the sqrt form:
+/// 1.5 · 2/√4 = 1.5 (the sum itself is 3, rewards.rs).
 #[test]
-fn neighbour_sqrt() {
-    let mut s = scene("seabream_default", 5);
-    s.rewards.extensions.neighbour_form = NeighbourForm::Sqrt;
-    s.rewards.contacts.kick = 0.0;
-    s.rewards.contacts.push = 0.0;
-    let mut env = calm_env(s);
-    let c = Vec3::new(-0.5, -1.5, -0.3);
-    place(&mut env, 0, c, Vec3::Z, 0.2);
-    for (k, (dx, deg)) in [(0.7f32, 60f32), (0.3, 0.0), (0.9, 90.0), (0.5, 30.0)]
-        .into_iter()
-        .enumerate()
-    {
-        let f = Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
-        place(&mut env, k + 1, c + Vec3::new(dx, 0.0, 0.0), f, 0.2);
-    }
-    env.observe_now();
-    env.step(&zeros(&env)).unwrap();
-    assert!(close(terms(&env, 0)[ND], 1.5, 2e-3), "{:?}", terms(&env, 0));
+fn neighbour_mean_and_sqrt() {
+    let mean = four_neighbours_nd(NeighbourForm::Mean);
+    assert!(close(mean, 0.75, 2e-3), "{mean}");
+    let sqrt = four_neighbours_nd(NeighbourForm::Sqrt);
+    assert!(close(sqrt, 1.5, 2e-3), "{sqrt}");
 }
 
 /// Size assortment: a parallel neighbour half as long counts half:
