@@ -2,7 +2,7 @@
 //! can call without the command line: load scenes and policies
 //! ([`policies`]), evaluate a school ([`evaluate`]), train a scene
 //! ([`training`]), runs side by side ([`compare`]), the two-step scheme
-//! ([`pipeline`]) and the reproduction of thesis §4.5 ([`reproduce`]: stages,
+//! ([`pipeline`]), labelled datasets for detectors ([`dataset`]) and the reproduction of thesis §4.5 ([`reproduce`]: stages,
 //! claims, measurement, figures, shipping).
 //!
 //! Errors are `anyhow` chains: the library crates below (`deepfoids-env`,
@@ -11,6 +11,7 @@
 
 pub mod bounds;
 pub mod compare;
+pub mod dataset;
 pub mod evaluate;
 pub mod pipeline;
 pub mod plot;

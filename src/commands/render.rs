@@ -1,36 +1,23 @@
 //! `deepfoids render`: a policy drives a scene, a camera of the field set-up
 //! films it, and every frame is written with its labels (YOLO, COCO, masks,
 //! per-frame JSON; see `deepfoids_render::dataset`). `deepfoids bench render`
-//! times it.
-//!
-//! Clips: frames come in clips of `--clip-frames` consecutive frames, each a
-//! fresh environment (seed derived from `--seed` and the clip index) warmed
-//! up for `--warmup` simulated seconds. With `--randomize` each clip draws its
-//! date, time of day, water, fish count and camera jitter; without it there
-//! is one clip in the scene's own conditions.
-//!
-//! Continuing: a frame is finished when its JSON exists (written last). A
-//! rerun with the same arguments skips finished frames; a partly finished clip
-//! is re-simulated from its start (the simulation is deterministic for a
-//! seed), and only its missing frames are rendered.
+//! times it. The rendering itself is `deepfoids_experiments::dataset`.
 
 use crate::args::whole;
 use crate::args::{PolicyArgs, SceneArgs};
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::Args;
+use deepfoids_env::ConfigDirs;
 use deepfoids_env::limits::{MAX_FPS, MAX_FRAMES, MAX_IMAGE_PX};
-use deepfoids_env::policy::{act_and_step, action_buffers};
-use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
 use deepfoids_experiments::bounds::{self, count_within, positive_at_most};
-use deepfoids_experiments::{load_scene, lock_dir, make_policy};
-use deepfoids_render::dataset::ImageFormat;
-use deepfoids_render::setup::{TailPhases, place_camera, poses, species_meshes};
-use deepfoids_render::{
-    CameraKind, ClipParams, Dataset, FishPose, FrameMeta, RandomRanges, RenderConfig, Renderer,
-    Split,
+use deepfoids_experiments::dataset::{
+    Clip, DatasetSpec, dir_bytes, render_dataset, size_classes, ticks,
 };
-use serde_json::json;
-use std::path::{Path, PathBuf};
+use deepfoids_experiments::load_scene;
+use deepfoids_render::dataset::ImageFormat;
+use deepfoids_render::setup::{place_camera, poses, species_meshes};
+use deepfoids_render::{CameraKind, ClipParams, Dataset, FrameMeta, RenderConfig, Renderer, Split};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -114,15 +101,6 @@ pub struct BenchRenderArgs {
     pub seed: u64,
 }
 
-/// Size class of each behaviour, by behaviour index.
-fn size_classes(scene: &Scene) -> Vec<String> {
-    scene
-        .behaviours
-        .iter()
-        .map(|b| b.size_class.clone())
-        .collect()
-}
-
 fn parse_camera(s: &str) -> Result<CameraKind, String> {
     s.parse()
 }
@@ -131,53 +109,11 @@ fn parse_format(s: &str) -> Result<ImageFormat, String> {
     s.parse()
 }
 
-/// A clip's simulation: environment, policy and tail-beat phases.
-struct Clip {
-    env: Env,
-    policy: Box<dyn Policy>,
-    actions: Vec<Vec<f32>>,
-    phases: TailPhases,
-}
-
-impl Clip {
-    fn new(
-        dirs: &ConfigDirs,
-        scene: Scene,
-        seed: u64,
-        policy: &str,
-        pa: &PolicyArgs,
-    ) -> Result<Self> {
-        let env = Env::new(scene, seed);
-        let policy = make_policy(dirs, policy, seed, &env, &pa.options())?;
-        let actions = action_buffers(&env);
-        let phases = TailPhases::new(env.world().len(), seed);
-        Ok(Self {
-            env,
-            policy,
-            actions,
-            phases,
-        })
-    }
-
-    fn step(&mut self, ticks: u64) -> Result<()> {
-        let dt = self.env.tick_seconds() as f32;
-        for _ in 0..ticks {
-            act_and_step(self.policy.as_mut(), &mut self.env, &mut self.actions)?;
-            self.phases.advance(self.env.world(), dt);
-        }
-        Ok(())
-    }
-}
-
 /// `--width` and `--height` within `[16, MAX_IMAGE_PX]`.
 fn image_size(width: u32, height: u32) -> Result<()> {
     let px = [16, MAX_IMAGE_PX as u64];
     count_within("--width", width as u64, px, "px")?;
     count_within("--height", height as u64, px, "px")
-}
-
-fn ticks(seconds: f64, env: &Env) -> u64 {
-    (seconds / env.tick_seconds()).round().max(0.0) as u64
 }
 
 pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
@@ -195,13 +131,6 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
             args.min_contrast
         );
     }
-    let scene = load_scene(dirs, &args.scene.scene, args.scene.phase)?;
-    let seed = args.scene.seed;
-    let clip_frames = if args.randomize {
-        args.clip_frames
-    } else {
-        args.frames
-    };
     if !(0.0..=1.0).contains(&args.val_fraction) {
         bail!(
             "--val-fraction must be in [0, 1] (a share of the clips), got {}",
@@ -209,173 +138,39 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
         );
     }
     count_within("--water-tries", args.water_tries as u64, [1, 100], "draws")?;
-    let ranges = RandomRanges::default();
-    let n_clips = args.frames.div_ceil(clip_frames);
-    let clips: Vec<ClipParams> = (0..n_clips)
-        .map(|c| {
-            if args.randomize {
-                ClipParams::random(&scene, c, seed, args.camera, &ranges)
-                    .map_err(|e| anyhow::anyhow!("clip {c}: {e}"))
-            } else {
-                Ok(ClipParams::from_scene(&scene, c, seed, args.camera))
-            }
-        })
-        .collect::<Result<_>>()?;
-    let _lock = lock_dir(&args.out)?;
-    let dataset = Dataset::new(
-        &args.out,
-        args.format,
-        scene.species_names(),
-        size_classes(&scene),
-    );
-    let config = RenderConfig {
+    let spec = DatasetSpec {
+        scene: load_scene(dirs, &args.scene.scene, args.scene.phase)?,
+        seed: args.scene.seed,
+        policy: args.policy.clone(),
+        policy_options: policy_args.options(),
+        frames: args.frames,
+        fps: args.fps,
+        camera: args.camera,
+        width: args.width,
+        height: args.height,
+        randomize: args.randomize,
+        clip_frames: args.clip_frames,
+        val_fraction: args.val_fraction,
+        allow_empty: args.allow_empty,
+        water_tries: args.water_tries,
+        warmup: args.warmup,
         min_contrast: args.min_contrast,
-        ..RenderConfig::default()
+        format: args.format,
+        out: args.out.clone(),
     };
-    let request = json!({
-        "min_contrast": args.min_contrast,
-        "scene": scene.id, "policy": args.policy, "frames": args.frames, "fps": args.fps,
-        "camera": args.camera.as_str(), "width": args.width, "height": args.height,
-        "randomize": args.randomize, "clip_frames": clip_frames, "warmup": args.warmup,
-        "seed": seed, "format": args.format.ext(), "phase": args.scene.phase.as_str(),
-        "val_fraction": args.val_fraction, "allow_empty": args.allow_empty, "water_tries": args.water_tries,
-        "stochastic": !policy_args.deterministic, "checkpoint": policy_args.checkpoint,
-    });
-    let optics: Vec<_> = clips
-        .iter()
-        .map(|c| {
-            let w = c.conditions(&scene, c.hours, true).water;
-            json!({"clip": c.clip, "ac": w.ac.to_array(), "extinction_c": w.c.to_array(),
-                   "diffuse_k": w.k.to_array(), "absorption": w.a.to_array()})
-        })
-        .collect();
-    let params = json!({
-        "scene": scene, "render": config, "randomize_ranges": ranges, "clips": clips,
-        "optics": optics, "classes": scene.species_names(),
-    });
-    dataset
-        .write_or_check_scene(&params, &request)
-        .with_context(|| format!("preparing {}", args.out.display()))?;
-    let renderer = Renderer::new(
-        config,
-        species_meshes(&scene),
-        Renderer::faces_of(&scene.cage()),
-    );
-
-    let done_before = (0..args.frames).filter(|&i| dataset.frame_done(i)).count();
     let bar = progress(args.frames, args.quiet);
-    bar.set_position(done_before as u64);
-    let start = Instant::now();
-    let mut rendered = 0usize;
-    for clip in &clips {
-        let first = clip.clip * clip_frames;
-        let range = first..(first + clip_frames).min(args.frames);
-        if range.clone().all(|i| dataset.frame_done(i)) {
-            continue;
-        }
-        let split = Split::of_clip(clip.clip, n_clips, args.val_fraction);
-        let cs = clip.apply(&scene);
-        let mut sim = Clip::new(dirs, cs.clone(), clip.seed, &args.policy, &policy_args)?;
-        let per_frame = ticks(1.0 / args.fps, &sim.env).max(1);
-        sim.step(ticks(args.warmup, &sim.env))?;
-        let camera = place_camera(&cs.cage(), &clip.camera, args.width, args.height);
-        let behaviour_of = sim.env.world().behaviour.clone();
-        // The whole clip is simulated first (poses are small); the water does
-        // not move the fish, so a redrawn water only renders again.
-        let mut steps: Vec<(f64, f64, Vec<FishPose>)> = Vec::with_capacity(range.len());
-        for k in 0..range.len() {
-            if k > 0 {
-                sim.step(per_frame)?;
-            }
-            steps.push((
-                sim.env.clock_hours(),
-                sim.env.output().time,
-                poses(sim.env.world(), &sim.phases),
-            ));
-        }
-        // A partly finished clip continues with the water its frames were drawn with.
-        let mut attempt = range
-            .clone()
-            .find(|&i| dataset.frame_done(i))
-            .and_then(|i| dataset.frame_meta(i).ok())
-            .map_or(0, |m| m.1);
-        let mut first_pass = true;
-        loop {
-            let water = if attempt == 0 {
-                clip.clone()
-            } else {
-                clip.redraw_water(seed, attempt, &ranges)
-                    .map_err(|e| anyhow::anyhow!("clip {}: {e}", clip.clip))?
-            };
-            let mut visible = 0usize;
-            for (i, (hours, time, fish)) in range.clone().zip(&steps) {
-                if dataset.frame_done(i)
-                    && let Ok((v, a)) = dataset.frame_meta(i)
-                    && a == attempt
-                {
-                    visible += v;
-                    continue;
-                }
-                let cond = water.conditions(&cs, *hours, true);
-                let frame = renderer.render(fish, &camera, &cond);
-                visible += frame.visible_count();
-                let meta = FrameMeta {
-                    clip: clip.clip,
-                    time: *time,
-                    clock_hours: *hours,
-                    sun_elevation_deg: cond.light.sun_elevation_deg,
-                    camera,
-                    split,
-                    water_attempt: attempt,
-                };
-                dataset
-                    .write_frame(i, &frame, &behaviour_of, &meta)
-                    .with_context(|| format!("writing frame {i}"))?;
-                if first_pass {
-                    rendered += 1;
-                    bar.inc(1);
-                }
-            }
-            if visible > 0 || !args.randomize || args.allow_empty {
-                break;
-            }
-            first_pass = false;
-            attempt += 1;
-            if attempt >= args.water_tries {
-                let w = deepfoids_render::Water::new(water.water, true);
-                bail!(
-                    "clip {} of {}: no fish visible in any of its frames with {} water draws (last: extinction {:.2} /m at 550 nm, {:02}:{:02} local time, sun {:.0}° high); pass --allow-empty to keep empty clips, or more --water-tries",
-                    clip.clip,
-                    scene.id,
-                    args.water_tries,
-                    w.c.y,
-                    clip.hours as u32,
-                    (clip.hours.fract() * 60.0) as u32,
-                    deepfoids_env::sun::SunPlace::position(
-                        &deepfoids_render::setup::site_place(&cs),
-                        clip.year,
-                        clip.month,
-                        clip.day,
-                        clip.hours
-                    )
-                    .elevation_deg
-                );
-            }
-        }
-    }
+    let done = render_dataset(dirs, &spec, |n| bar.set_position(n as u64))?;
     bar.finish_and_clear();
-    let annotations = dataset.finish(args.frames)?;
-    let wall = start.elapsed().as_secs_f64();
     println!(
         "{}: {} frames ({} rendered now, {} kept), {} annotations, {:.1} MB in {}; {:.2} frames/s",
-        scene.id,
+        spec.scene.id,
         args.frames,
-        rendered,
-        done_before,
-        annotations,
-        dir_bytes(&args.out) as f64 / 1e6,
+        done.rendered,
+        done.kept,
+        done.annotations,
+        done.bytes as f64 / 1e6,
         args.out.display(),
-        rendered as f64 / wall.max(1e-9)
+        done.rendered as f64 / done.seconds.max(1e-9)
     );
     Ok(())
 }
@@ -393,21 +188,6 @@ fn progress(n: usize, quiet: bool) -> indicatif::ProgressBar {
         .progress_chars("=> "),
     );
     bar
-}
-
-/// Total size of the files under `dir` (bytes).
-fn dir_bytes(dir: &Path) -> u64 {
-    std::fs::read_dir(dir)
-        .map(|rd| {
-            rd.flatten()
-                .map(|e| match e.metadata() {
-                    Ok(m) if m.is_dir() => dir_bytes(&e.path()),
-                    Ok(m) => m.len(),
-                    Err(_) => 0,
-                })
-                .sum()
-        })
-        .unwrap_or(0)
 }
 
 /// `deepfoids bench render`: frames per second of rendering with every label
@@ -428,7 +208,7 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
         stochastic: false,
         latest: false,
     };
-    let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa)?;
+    let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa.options())?;
     sim.step(ticks(10.0, &sim.env))?;
     let renderer = Renderer::new(
         RenderConfig::default(),
