@@ -2,7 +2,7 @@
 //! can call without the command line: load scenes and policies
 //! ([`policies`]), evaluate a school ([`evaluate`]), train a scene
 //! ([`training`]), runs side by side ([`compare`]), the two-step scheme
-//! ([`pipeline`]), labelled datasets for detectors ([`dataset`]) and the reproduction of thesis §4.5 ([`reproduce`]: stages,
+//! ([`pipeline`]), labelled datasets for detectors ([`dataset`]), replay pages ([`replays`]) and the reproduction of thesis §4.5 ([`reproduce`]: stages,
 //! claims, measurement, figures, shipping).
 //!
 //! Errors are `anyhow` chains: the library crates below (`deepfoids-env`,
@@ -17,6 +17,7 @@ pub mod pipeline;
 pub mod plot;
 pub mod policies;
 pub mod pretrained;
+pub mod replays;
 pub mod reproduce;
 pub mod training;
 

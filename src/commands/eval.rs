@@ -57,8 +57,8 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     bounds::out_dir("--out", &out)?;
     let _lock = lock_dir(&out)?;
     let info = if args.replay {
-        super::replay::check_recording(&env, args.seconds, args.replay_fps)?;
-        Some(super::replay::info(
+        deepfoids_experiments::replays::check_recording(&env, args.seconds, args.replay_fps)?;
+        Some(deepfoids_experiments::replays::info(
             &env,
             &policy.name(),
             "simulated by deepfoids eval",
@@ -109,11 +109,14 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         out.display()
     );
     if let Some(r) = recorder {
-        let rec = r.finish(super::replay::curves(&eval));
+        let rec = r.finish(deepfoids_experiments::replays::curves(&eval));
         let path = out.join("replay.html");
-        let size = super::replay::write_page(&path, &rec)?;
-        println!("{}", super::replay::describe(&path, &rec, &size));
-        super::replay::warn_if_large(&size);
+        let size = deepfoids_experiments::replays::write_page(&path, &rec)?;
+        println!(
+            "{}",
+            deepfoids_experiments::replays::describe(&path, &rec, &size)
+        );
+        deepfoids_experiments::replays::warn_if_large(&size);
     }
     Ok(())
 }
