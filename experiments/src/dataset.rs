@@ -205,25 +205,64 @@ pub fn render_dataset(
     let done_before = (0..spec.frames).filter(|&i| dataset.frame_done(i)).count();
     progress(done_before);
     let start = Instant::now();
+    let job = Job {
+        dirs,
+        spec,
+        dataset: &dataset,
+        renderer: &renderer,
+        ranges: &ranges,
+        clip_frames,
+        n_clips,
+    };
     let mut rendered = 0usize;
     for clip in &clips {
-        let first = clip.clip * clip_frames;
-        let range = first..(first + clip_frames).min(spec.frames);
-        if range.clone().all(|i| dataset.frame_done(i)) {
-            continue;
+        let before = done_before + rendered;
+        rendered += job.render_clip(clip, &mut |n| progress(before + n))?;
+    }
+    let annotations = dataset.finish(spec.frames)?;
+    Ok(Rendered {
+        rendered,
+        kept: done_before,
+        annotations,
+        bytes: dir_bytes(&spec.out),
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// One render's fixed parts, shared by its clips.
+struct Job<'a> {
+    dirs: &'a ConfigDirs,
+    spec: &'a DatasetSpec,
+    dataset: &'a Dataset,
+    renderer: &'a Renderer,
+    ranges: &'a RandomRanges,
+    clip_frames: usize,
+    n_clips: usize,
+}
+
+impl Job<'_> {
+    /// Render `clip`'s missing frames: simulate the whole clip first (poses
+    /// are small), then render it, drawing its water again while no fish is
+    /// visible (with `randomize`, up to `water_tries` draws). Returns the
+    /// frames rendered; `progress(n)` after each of the first pass.
+    fn render_clip(&self, clip: &ClipParams, progress: &mut dyn FnMut(usize)) -> Result<usize> {
+        let first = clip.clip * self.clip_frames;
+        let range = first..(first + self.clip_frames).min(self.spec.frames);
+        if range.clone().all(|i| self.dataset.frame_done(i)) {
+            return Ok(0);
         }
-        let split = Split::of_clip(clip.clip, n_clips, spec.val_fraction);
-        let cs = clip.apply(scene);
+        let split = Split::of_clip(clip.clip, self.n_clips, self.spec.val_fraction);
+        let cs = clip.apply(&self.spec.scene);
         let mut sim = Clip::new(
-            dirs,
+            self.dirs,
             cs.clone(),
             clip.seed,
-            &spec.policy,
-            &spec.policy_options,
+            &self.spec.policy,
+            &self.spec.policy_options,
         )?;
-        let per_frame = ticks(1.0 / spec.fps, &sim.env).max(1);
-        sim.step(ticks(spec.warmup, &sim.env))?;
-        let camera = place_camera(&cs.cage(), &clip.camera, spec.width, spec.height);
+        let per_frame = ticks(1.0 / self.spec.fps, &sim.env).max(1);
+        sim.step(ticks(self.spec.warmup, &sim.env))?;
+        let camera = place_camera(&cs.cage(), &clip.camera, self.spec.width, self.spec.height);
         let behaviour_of = sim.env.world().behaviour.clone();
         // The whole clip is simulated first (poses are small); the water does
         // not move the fish, so a redrawn water only renders again.
@@ -241,28 +280,29 @@ pub fn render_dataset(
         // A partly finished clip continues with the water its frames were drawn with.
         let mut attempt = range
             .clone()
-            .find(|&i| dataset.frame_done(i))
-            .and_then(|i| dataset.frame_meta(i).ok())
+            .find(|&i| self.dataset.frame_done(i))
+            .and_then(|i| self.dataset.frame_meta(i).ok())
             .map_or(0, |m| m.1);
         let mut first_pass = true;
+        let mut rendered = 0usize;
         loop {
             let water = if attempt == 0 {
                 clip.clone()
             } else {
-                clip.redraw_water(seed, attempt, &ranges)
+                clip.redraw_water(self.spec.seed, attempt, self.ranges)
                     .map_err(|e| anyhow::anyhow!("clip {}: {e}", clip.clip))?
             };
             let mut visible = 0usize;
             for (i, (hours, time, fish)) in range.clone().zip(&steps) {
-                if dataset.frame_done(i)
-                    && let Ok((v, a)) = dataset.frame_meta(i)
+                if self.dataset.frame_done(i)
+                    && let Ok((v, a)) = self.dataset.frame_meta(i)
                     && a == attempt
                 {
                     visible += v;
                     continue;
                 }
                 let cond = water.conditions(&cs, *hours, true);
-                let frame = renderer.render(fish, &camera, &cond);
+                let frame = self.renderer.render(fish, &camera, &cond);
                 visible += frame.visible_count();
                 let meta = FrameMeta {
                     clip: clip.clip,
@@ -273,26 +313,26 @@ pub fn render_dataset(
                     split,
                     water_attempt: attempt,
                 };
-                dataset
+                self.dataset
                     .write_frame(i, &frame, &behaviour_of, &meta)
                     .with_context(|| format!("writing frame {i}"))?;
                 if first_pass {
                     rendered += 1;
-                    progress(done_before + rendered);
+                    progress(rendered);
                 }
             }
-            if visible > 0 || !spec.randomize || spec.allow_empty {
+            if visible > 0 || !self.spec.randomize || self.spec.allow_empty {
                 break;
             }
             first_pass = false;
             attempt += 1;
-            if attempt >= spec.water_tries {
+            if attempt >= self.spec.water_tries {
                 let w = deepfoids_render::Water::new(water.water, true);
                 bail!(
                     "clip {} of {}: no fish visible in any of its frames with {} water draws (last: extinction {:.2} /m at 550 nm, {:02}:{:02} local time, sun {:.0}° high); pass --allow-empty to keep empty clips, or more --water-tries",
                     clip.clip,
-                    scene.id,
-                    spec.water_tries,
+                    self.spec.scene.id,
+                    self.spec.water_tries,
                     w.c.y,
                     clip.hours as u32,
                     (clip.hours.fract() * 60.0) as u32,
@@ -307,13 +347,6 @@ pub fn render_dataset(
                 );
             }
         }
+        Ok(rendered)
     }
-    let annotations = dataset.finish(spec.frames)?;
-    Ok(Rendered {
-        rendered,
-        kept: done_before,
-        annotations,
-        bytes: dir_bytes(&spec.out),
-        seconds: start.elapsed().as_secs_f64(),
-    })
 }
