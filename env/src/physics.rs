@@ -203,128 +203,136 @@ impl Physics<'_> {
         )
     }
 
-    /// One physics step (see the module docs).
+    /// One physics step (see the module docs): move, then contacts, then
+    /// the repulsion they ask for.
     pub fn step(&self, state: &mut State, contact_grid: &mut SpatialGrid, correction: &mut [Vec3]) {
+        self.move_fish(state);
+        self.contacts(state, contact_grid, correction);
+        self.repel(state, correction);
+        state.physics_steps += 1;
+        state.world.time = state.physics_steps as f64 * self.config.dt_sim as f64;
+    }
+
+    /// Step part 1. Velocity (Eq. 4.4), position, heading; respawn or bounce
+    /// on crossing; the terms that accrue at every step (SPEC §6.1).
+    fn move_fish(&self, state: &mut State) {
         let dt = self.config.dt_sim;
         let rw = self.rewards;
         let (per_step_rewards, ends_episode) = (
             rw.timing.rewards == RewardTiming::PerStep,
             rw.extensions.boundary_ends_episode,
         );
-        // 1. Velocity (Eq. 4.4), position, heading; respawn or bounce on crossing;
-        //    the terms that accrue at every step (SPEC §6.1).
-        {
-            let w = &mut state.world;
-            let (traits, cage, obstacles, seed) =
-                (self.traits, self.cage, self.obstacles, self.seed);
-            let (info, behaviour, bl) = (self.info, &w.behaviour, &w.bl);
-            let (margin_bl, max_pitch, roll_max) = (
-                self.config.spawn_margin_bl,
-                self.config.spawn_pitch_deg.to_radians(),
-                self.config.roll_clamp_deg.to_radians(),
-            );
-            let (pitch_threshold, speed_threshold) = (
-                self.config.pitch_threshold_deg,
-                self.config.speed_threshold_bl,
-            );
-            (
-                w.position.par_iter_mut(),
-                w.heading.par_iter_mut(),
-                w.roll.par_iter_mut(),
-                w.speed.par_iter_mut(),
-                state.motor.par_iter_mut(),
-                state.since.par_iter_mut(),
-                state.axes.par_iter_mut(),
-            )
-                .into_par_iter()
-                .with_min_len(PAR_MIN_LEN)
-                .enumerate()
-                .for_each(|(i, (p, f, roll, s, motor, since, axes))| {
-                    let (f0, s0) = (*f, *s);
-                    // SPEC §4: per-step actions turn by θ_step and change the
-                    // speed by Δv_max·BL·dt_sim at this step; per-decision ones
-                    // add their decision's Δv_f / k.
-                    let (dv, new_roll) = if motor.stepwise {
-                        let (tf, troll) =
-                            turn(f0, *roll, motor.yaw_step, motor.pitch_step, roll_max);
-                        let ts = (s0 + motor.accel_step)
-                            .clamp(motor.speed_range[0], motor.speed_range[1]);
-                        (ts * tf - s0 * f0, troll)
-                    } else {
-                        (motor.dv_step, *roll)
-                    };
-                    let (nf, ns) = integrate_velocity(
-                        f0,
-                        s0,
-                        dv + motor.kick,
-                        motor.vertical_step,
-                        motor.speed_range,
+        let w = &mut state.world;
+        let (traits, cage, obstacles, seed) = (self.traits, self.cage, self.obstacles, self.seed);
+        let (info, behaviour, bl) = (self.info, &w.behaviour, &w.bl);
+        let (margin_bl, max_pitch, roll_max) = (
+            self.config.spawn_margin_bl,
+            self.config.spawn_pitch_deg.to_radians(),
+            self.config.roll_clamp_deg.to_radians(),
+        );
+        let (pitch_threshold, speed_threshold) = (
+            self.config.pitch_threshold_deg,
+            self.config.speed_threshold_bl,
+        );
+        (
+            w.position.par_iter_mut(),
+            w.heading.par_iter_mut(),
+            w.roll.par_iter_mut(),
+            w.speed.par_iter_mut(),
+            state.motor.par_iter_mut(),
+            state.since.par_iter_mut(),
+            state.axes.par_iter_mut(),
+        )
+            .into_par_iter()
+            .with_min_len(PAR_MIN_LEN)
+            .enumerate()
+            .for_each(|(i, (p, f, roll, s, motor, since, axes))| {
+                let (f0, s0) = (*f, *s);
+                // SPEC §4: per-step actions turn by θ_step and change the
+                // speed by Δv_max·BL·dt_sim at this step; per-decision ones
+                // add their decision's Δv_f / k.
+                let (dv, new_roll) = if motor.stepwise {
+                    let (tf, troll) = turn(f0, *roll, motor.yaw_step, motor.pitch_step, roll_max);
+                    let ts =
+                        (s0 + motor.accel_step).clamp(motor.speed_range[0], motor.speed_range[1]);
+                    (ts * tf - s0 * f0, troll)
+                } else {
+                    (motor.dv_step, *roll)
+                };
+                let (nf, ns) = integrate_velocity(
+                    f0,
+                    s0,
+                    dv + motor.kick,
+                    motor.vertical_step,
+                    motor.speed_range,
+                );
+                motor.kick = Vec3::ZERO;
+                let obb = Obb {
+                    center: *p + nf * ns * dt,
+                    axes: basis(nf, new_roll),
+                    half: traits.half[i],
+                };
+                if !crosses(&obb, &cage.boundaries, obstacles) {
+                    *p = obb.center;
+                    *f = nf;
+                    *s = ns;
+                    *roll = new_roll;
+                    *axes = obb.axes;
+                } else if ends_episode {
+                    let mut st = Stream::new(seed, Purpose::Spawn, i as u64, since.spawns as u64);
+                    since.spawns += 1;
+                    let (sp, sf) = spawn_pose(
+                        cage,
+                        obstacles,
+                        traits.half[i],
+                        margin_bl * bl[i],
+                        max_pitch,
+                        &mut st,
                     );
-                    motor.kick = Vec3::ZERO;
-                    let obb = Obb {
-                        center: *p + nf * ns * dt,
-                        axes: basis(nf, new_roll),
-                        half: traits.half[i],
-                    };
-                    if !crosses(&obb, &cage.boundaries, obstacles) {
-                        *p = obb.center;
-                        *f = nf;
-                        *s = ns;
-                        *roll = new_roll;
-                        *axes = obb.axes;
-                    } else if ends_episode {
-                        let mut st =
-                            Stream::new(seed, Purpose::Spawn, i as u64, since.spawns as u64);
-                        since.spawns += 1;
-                        let (sp, sf) = spawn_pose(
-                            cage,
-                            obstacles,
-                            traits.half[i],
-                            margin_bl * bl[i],
-                            max_pitch,
-                            &mut st,
-                        );
-                        *p = sp;
-                        *f = sf;
-                        *roll = 0.0;
-                        *s = info[behaviour[i] as usize].v0_bl * bl[i];
-                        motor.dv_step = Vec3::ZERO;
-                        motor.vertical_step = 0.0;
-                        motor.stepwise = false;
-                        since.crossed = true;
-                        since.n_touching = 0;
-                        *axes = basis(sf, 0.0);
-                        return;
-                    } else {
-                        let (bp, bf, br) = bounce(*p, f0, *roll, &obb, cage, obstacles);
-                        *p = bp;
-                        *f = bf;
-                        *s = ns;
-                        *roll = br;
-                        *axes = basis(bf, br);
-                        since.crossed = true;
-                    }
-                    if per_step_rewards {
-                        let b = bl[i];
-                        let acc = &mut since.accrued;
-                        acc.movement += reward::movement(
-                            rw,
-                            pitch_deg(*f),
-                            *s / b,
-                            pitch_threshold,
-                            speed_threshold,
-                        );
-                        acc.boundary_distance += reward::boundary_distance(
-                            rw,
-                            boundary_closeness(*p, traits.sense[i], &cage.boundaries, obstacles),
-                        );
-                        acc.energy +=
-                            reward::energy(rw, angle_deg(f0, *f), (*s * *f - s0 * f0).length() / b);
-                    }
-                });
-        }
-        // 2. Contacts between fish: count partners, note catches, push apart,
-        //    and kick the pairs whose contact starts (SPEC §6.1).
+                    *p = sp;
+                    *f = sf;
+                    *roll = 0.0;
+                    *s = info[behaviour[i] as usize].v0_bl * bl[i];
+                    motor.dv_step = Vec3::ZERO;
+                    motor.vertical_step = 0.0;
+                    motor.stepwise = false;
+                    since.crossed = true;
+                    since.n_touching = 0;
+                    *axes = basis(sf, 0.0);
+                    return;
+                } else {
+                    let (bp, bf, br) = bounce(*p, f0, *roll, &obb, cage, obstacles);
+                    *p = bp;
+                    *f = bf;
+                    *s = ns;
+                    *roll = br;
+                    *axes = basis(bf, br);
+                    since.crossed = true;
+                }
+                if per_step_rewards {
+                    let b = bl[i];
+                    let acc = &mut since.accrued;
+                    acc.movement += reward::movement(
+                        rw,
+                        pitch_deg(*f),
+                        *s / b,
+                        pitch_threshold,
+                        speed_threshold,
+                    );
+                    acc.boundary_distance += reward::boundary_distance(
+                        rw,
+                        boundary_closeness(*p, traits.sense[i], &cage.boundaries, obstacles),
+                    );
+                    acc.energy +=
+                        reward::energy(rw, angle_deg(f0, *f), (*s * *f - s0 * f0).length() / b);
+                }
+            });
+    }
+
+    /// Step part 2. Contacts between fish: count partners, note catches, push apart,
+    /// and kick the pairs whose contact starts (SPEC §6.1).
+    fn contacts(&self, state: &mut State, contact_grid: &mut SpatialGrid, correction: &mut [Vec3]) {
+        let rw = self.rewards;
         contact_grid.rebuild(&state.world.position, &self.traits.bound);
         {
             let w = &state.world;
@@ -390,30 +398,29 @@ impl Physics<'_> {
                     *corr = push;
                 });
         }
-        // 3. Apply the repulsion unless it would push a collider through a boundary.
-        {
-            let (cage, obstacles, axes, half) =
-                (self.cage, self.obstacles, &state.axes, &self.traits.half);
-            (state.world.position.par_iter_mut(), correction.par_iter())
-                .into_par_iter()
-                .with_min_len(PAR_MIN_LEN)
-                .enumerate()
-                .for_each(|(i, (p, corr))| {
-                    if *corr == Vec3::ZERO {
-                        return;
-                    }
-                    let obb = Obb {
-                        center: *p + *corr,
-                        axes: axes[i],
-                        half: half[i],
-                    };
-                    if !crosses(&obb, &cage.boundaries, obstacles) {
-                        *p = obb.center;
-                    }
-                });
-        }
-        state.physics_steps += 1;
-        state.world.time = state.physics_steps as f64 * dt as f64;
+    }
+
+    /// Step part 3. Apply the repulsion unless it would push a collider through a boundary.
+    fn repel(&self, state: &mut State, correction: &[Vec3]) {
+        let (cage, obstacles, axes, half) =
+            (self.cage, self.obstacles, &state.axes, &self.traits.half);
+        (state.world.position.par_iter_mut(), correction.par_iter())
+            .into_par_iter()
+            .with_min_len(PAR_MIN_LEN)
+            .enumerate()
+            .for_each(|(i, (p, corr))| {
+                if *corr == Vec3::ZERO {
+                    return;
+                }
+                let obb = Obb {
+                    center: *p + *corr,
+                    axes: axes[i],
+                    half: half[i],
+                };
+                if !crosses(&obb, &cage.boundaries, obstacles) {
+                    *p = obb.center;
+                }
+            });
     }
 }
 
