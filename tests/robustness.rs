@@ -1027,6 +1027,50 @@ fn training_configs_are_planned_before_any_folder() {
     let _ = std::fs::remove_dir_all(&configs);
 }
 
+/// Issue 25 item 1, case by case as the issue listed them: each absurd
+/// training value is refused by file, field and allowed range before any
+/// folder is made (`layers = 100000` once took 24 GB and the OOM killer;
+/// `hidden = 1e6` and a SAC `buffer_size = 4e9` aborted in the allocator;
+/// `epochs = 1e9` hung; a PPO `buffer_size = 1e12` "finished" with no update).
+#[test]
+fn the_issues_training_configs_are_refused_by_field() {
+    let configs = configs_checkpointing("train-cases-configs");
+    let runs = temp("train-cases");
+    let cases: [(&str, &str, &str, &str); 6] = [
+        ("ppo.toml", "layers", "100000", "allowed 1 to 32"),
+        ("ppo.toml", "hidden", "1000000", "allowed 1 to 4096"),
+        (
+            "sac.toml",
+            "buffer_size",
+            "4000000000",
+            "allowed 1 to 100000000",
+        ),
+        ("ppo.toml", "epochs", "1000000000", "allowed 1 to 100"),
+        (
+            "ppo.toml",
+            "buffer_size",
+            "1000000000000",
+            "allowed 1 to 100000000",
+        ),
+        ("ppo.toml", "time_horizon", "0", "must be at least 1, got 0"),
+    ];
+    for (file, field, value, allowed) in cases {
+        let original = std::fs::read_to_string(configs.join("train").join(file)).unwrap();
+        set_train_values(&configs, file, &[(field, value)]);
+        let algo = if file == "sac.toml" { "sac" } else { "ppo" };
+        let o = train_cmd(&configs, &runs, "a", "300", &["--algo", algo])
+            .output()
+            .unwrap();
+        let path = configs.join("train").join(file);
+        assert_refused(&o, &format!("{}: field `{field}`", path.display()));
+        assert_refused(&o, allowed);
+        assert!(names_in(&runs).is_empty(), "{field}: {:?}", names_in(&runs));
+        std::fs::write(configs.join("train").join(file), original).unwrap();
+    }
+    let _ = std::fs::remove_dir_all(&runs);
+    let _ = std::fs::remove_dir_all(&configs);
+}
+
 /// Issue 25 items 2 and 3: a run without its final policy is evaluated only
 /// with `--checkpoint STEP` or `--latest`, and the summary names the step;
 /// a failed `--init-from` (corrupt weights) leaves nothing that blocks the
