@@ -19,6 +19,7 @@ pub mod policies;
 pub mod pretrained;
 pub mod replays;
 pub mod reproduce;
+pub mod sensor_view;
 pub mod training;
 
 pub use policies::{PolicyOptions, load_actor, load_scene, load_trained, make_policy};
