@@ -20,6 +20,7 @@ pub mod pretrained;
 pub mod replays;
 pub mod reproduce;
 pub mod sensor_view;
+pub mod simulate;
 pub mod training;
 
 pub use policies::{PolicyOptions, load_actor, load_scene, load_trained, make_policy};
