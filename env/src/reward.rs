@@ -40,6 +40,9 @@ pub const TERM_NAMES: [&str; N_TERMS] = [
     "chase",
 ];
 
+/// The thesis' symbols of the terms, in the order of [`TERM_NAMES`].
+pub const TERM_SYMBOLS: [&str; N_TERMS] = ["r_BC", "r_NC", "r_BD", "r_ND", "r_E", "r_M", "r_C"];
+
 /// The seven terms of one decision's reward.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Terms {

@@ -17,6 +17,7 @@ pub mod pipeline;
 pub mod plot;
 pub mod policies;
 pub mod pretrained;
+pub mod process;
 pub mod replays;
 pub mod reproduce;
 pub mod sensor_view;

@@ -11,17 +11,29 @@ pub const PREFIX: &str = "pretrained:";
 /// Where the shipped policies are: `$DEEPFOIDS_POLICIES`, else `./policies`
 /// when it exists, else the repository's (the parent of this crate's folder).
 pub fn root() -> PathBuf {
-    if let Ok(d) = std::env::var("DEEPFOIDS_POLICIES") {
+    shipped("DEEPFOIDS_POLICIES", "policies")
+}
+
+/// Where the shipped detector is: `$DEEPFOIDS_DETECTORS/fish.onnx`, else
+/// `./detectors/fish.onnx` when that folder exists, else the repository's.
+pub fn detector() -> PathBuf {
+    shipped("DEEPFOIDS_DETECTORS", "detectors").join("fish.onnx")
+}
+
+/// A shipped folder: `$var`, else `./folder` when it exists, else the
+/// repository's.
+fn shipped(var: &str, folder: &str) -> PathBuf {
+    if let Ok(d) = std::env::var(var) {
         return d.into();
     }
-    let local = PathBuf::from("policies");
+    let local = PathBuf::from(folder);
     if local.is_dir() {
         return local;
     }
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .unwrap_or(Path::new("."))
-        .join("policies")
+        .join(folder)
 }
 
 /// Species with a shipped policy in `root`.

@@ -7,7 +7,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use deepfoids_count::count::{Outputs, run as count_run};
 use deepfoids_count::{CountConfig, Counter, Detector, InputCamera};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -63,27 +63,12 @@ pub struct CountOptions {
     pub median: u32,
 }
 
-/// Where the shipped detector is: `$DEEPFOIDS_DETECTORS`, else `./detectors`, else the repository's.
-fn shipped_detector() -> PathBuf {
-    let root = std::env::var("DEEPFOIDS_DETECTORS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|_| {
-            let local = PathBuf::from("detectors");
-            if local.is_dir() {
-                local
-            } else {
-                Path::new(env!("CARGO_MANIFEST_DIR")).join("detectors")
-            }
-        });
-    root.join("fish.onnx")
-}
-
 /// The counter of `opts`: the detector loaded, its training view as the default.
 pub fn counter(opts: &CountOptions) -> Result<Counter> {
     let path = match &opts.detector {
         Some(p) => p.clone(),
         None => {
-            let p = shipped_detector();
+            let p = deepfoids_experiments::pretrained::detector();
             if !p.is_file() {
                 bail!(
                     "no shipped detector at {}; pass --detector X.onnx (train one with `deepfoids train-detector`, or bring a YOLOv8 ONNX export)",

@@ -18,6 +18,7 @@ use deepfoids_render::dataset::ImageFormat;
 use deepfoids_render::setup::{place_camera, poses, species_meshes};
 use deepfoids_render::{CameraKind, ClipParams, Dataset, FrameMeta, RenderConfig, Renderer, Split};
 use std::path::PathBuf;
+use std::str::FromStr;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -36,7 +37,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 5.0)]
     pub fps: f64,
     /// Camera: bottom-fisheye (235°, cage bottom looking up), side (pinhole 90°), side-fisheye (155°)
-    #[arg(long, default_value = "bottom-fisheye", value_parser = parse_camera)]
+    #[arg(long, default_value = "bottom-fisheye", value_parser = CameraKind::from_str)]
     pub camera: CameraKind,
     /// Image width (pixels)
     #[arg(value_parser = whole::<u32>, long, default_value_t = 1280)]
@@ -70,7 +71,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = RenderConfig::default().min_contrast)]
     pub min_contrast: f32,
     /// Image format: jpg or png
-    #[arg(long, default_value = "jpg", value_parser = parse_format)]
+    #[arg(long, default_value = "jpg", value_parser = ImageFormat::from_str)]
     pub format: ImageFormat,
     /// No progress bar
     #[arg(long)]
@@ -92,21 +93,13 @@ pub struct BenchRenderArgs {
     pub width: u32,
     #[arg(value_parser = whole::<u32>, long, default_value_t = 720)]
     pub height: u32,
-    #[arg(long, default_value = "bottom-fisheye", value_parser = parse_camera)]
+    #[arg(long, default_value = "bottom-fisheye", value_parser = CameraKind::from_str)]
     pub camera: CameraKind,
     /// Who acts (as for `render`)
     #[arg(long, default_value = "foids")]
     pub policy: String,
     #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
-}
-
-fn parse_camera(s: &str) -> Result<CameraKind, String> {
-    s.parse()
-}
-
-fn parse_format(s: &str) -> Result<ImageFormat, String> {
-    s.parse()
 }
 
 /// `--width` and `--height` within `[16, MAX_IMAGE_PX]`.

@@ -5,7 +5,8 @@
 use crate::args::{PolicyArgs, SceneArgs, rerun};
 use anyhow::Result;
 use clap::Args;
-use deepfoids_env::{ConfigDirs, Env, TERM_NAMES};
+use deepfoids_env::reward::TERM_SYMBOLS;
+use deepfoids_env::{ConfigDirs, Env};
 use deepfoids_experiments::simulate::{Simulated, simulate_to_csv};
 use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
 use deepfoids_io::write_atomic;
@@ -78,8 +79,8 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         csv_path.display()
     );
     print!("{:<20} {:>10} {:>9}", "behaviour", "decisions", "reward");
-    for n in TERM_NAMES {
-        print!(" {:>10}", short(n));
+    for n in TERM_SYMBOLS {
+        print!(" {n:>10}");
     }
     println!(" {:>10} {:>10}", "BC/fish·h", "NC/fish·h");
     for (name, t) in names.iter().zip(&tallies) {
@@ -101,18 +102,4 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// Short column names for the reward terms.
-pub fn short(term: &str) -> &'static str {
-    match term {
-        "boundary_collision" => "r_BC",
-        "neighbour_collision" => "r_NC",
-        "boundary_distance" => "r_BD",
-        "neighbour_distance" => "r_ND",
-        "energy" => "r_E",
-        "movement" => "r_M",
-        "chase" => "r_C",
-        _ => "?",
-    }
 }
