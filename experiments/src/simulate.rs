@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{Env, N_TERMS, Policy, StepOutput};
 use deepfoids_io::AtomicFile;
+use deepfoids_replay::trajectories::{HEADER, write_rows};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
@@ -74,30 +75,8 @@ pub fn simulate_to_csv(
     let tick_steps = env.tick_steps() as u64;
 
     let mut csv = AtomicFile::create(csv_path)?;
-    writeln!(csv, "t,fish,behaviour,x,y,z,dx,dy,dz,speed,bl")?;
-    let write_rows = |csv: &mut AtomicFile, out: &StepOutput| -> std::io::Result<()> {
-        let f = &out.fish;
-        for i in 0..f.position.len() {
-            let (p, d) = (f.position[i], f.heading[i]);
-            writeln!(
-                csv,
-                "{:.3},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
-                out.time,
-                i,
-                names[f.behaviour[i] as usize],
-                p.x,
-                p.y,
-                p.z,
-                d.x,
-                d.y,
-                d.z,
-                f.speed[i],
-                f.bl[i]
-            )?;
-        }
-        Ok(())
-    };
-    write_rows(&mut csv, env.output())?;
+    writeln!(csv, "{HEADER}")?;
+    write_rows(&mut csv, env.output(), &names)?;
 
     let mut tallies = vec![Tally::default(); names.len()];
     let (mut speed_bl, mut depth, mut samples) = (0.0f64, 0.0f64, 0u64);
@@ -109,7 +88,7 @@ pub fn simulate_to_csv(
         }
         let steps = out.tick * tick_steps;
         if steps.is_multiple_of(fastest as u64) {
-            write_rows(&mut csv, out)?;
+            write_rows(&mut csv, out, &names)?;
             let f = &out.fish;
             for i in 0..f.position.len() {
                 speed_bl += (f.speed[i] / f.bl[i]) as f64;

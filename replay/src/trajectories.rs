@@ -16,6 +16,35 @@ use glam::Vec3;
 /// The header `simulate` writes.
 pub const HEADER: &str = "t,fish,behaviour,x,y,z,dx,dy,dz,speed,bl";
 
+/// Write `out`'s fish as rows of `trajectories.csv` (under [`HEADER`]);
+/// `names[b]` is behaviour `b`'s name.
+pub fn write_rows<W: std::io::Write>(
+    w: &mut W,
+    out: &deepfoids_env::StepOutput,
+    names: &[String],
+) -> std::io::Result<()> {
+    let f = &out.fish;
+    for i in 0..f.position.len() {
+        let (p, d) = (f.position[i], f.heading[i]);
+        writeln!(
+            w,
+            "{:.3},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
+            out.time,
+            i,
+            names[f.behaviour[i] as usize],
+            p.x,
+            p.y,
+            p.z,
+            d.x,
+            d.y,
+            d.z,
+            f.speed[i],
+            f.bl[i]
+        )?;
+    }
+    Ok(())
+}
+
 /// Body lengths in the CSV are rounded to 0.1 mm; allow twice that.
 const BL_TOLERANCE: f32 = 2e-4;
 
@@ -282,28 +311,11 @@ mod tests {
         let mut policy = RandomPolicy { seed: 3 };
         let mut actions = action_buffers(&env);
         let names: Vec<String> = env.behaviours().iter().map(|b| b.name.clone()).collect();
-        let mut text = format!("{HEADER}\n");
+        let mut text = format!("{HEADER}\n").into_bytes();
         let mut positions = vec![];
-        let mut write = |env: &Env, text: &mut String| {
-            let f = &env.output().fish;
-            for i in 0..f.position.len() {
-                let (p, d) = (f.position[i], f.heading[i]);
-                text.push_str(&format!(
-                    "{:.3},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
-                    env.output().time,
-                    i,
-                    names[f.behaviour[i] as usize],
-                    p.x,
-                    p.y,
-                    p.z,
-                    d.x,
-                    d.y,
-                    d.z,
-                    f.speed[i],
-                    f.bl[i]
-                ));
-            }
-            positions.push(f.position.clone());
+        let mut write = |env: &Env, text: &mut Vec<u8>| {
+            write_rows(text, env.output(), &names).unwrap();
+            positions.push(env.output().fish.position.clone());
         };
         write(&env, &mut text);
         for _ in 0..seconds * 10 {
@@ -311,7 +323,7 @@ mod tests {
             env.step(&actions).unwrap();
             write(&env, &mut text);
         }
-        (text, positions)
+        (String::from_utf8(text).unwrap(), positions)
     }
 
     /// Rows every 0.1 s at 5 frames/s: every second snapshot is a frame
