@@ -213,17 +213,7 @@ impl Scene {
 
     fn validate(&self, path: &Path) -> Result<(), ConfigError> {
         let p = &self.physics;
-        let positive = |v: f32, field: &str| {
-            if v > 0.0 && v.is_finite() {
-                Ok(())
-            } else {
-                Err(ConfigError::invalid(
-                    path,
-                    field,
-                    format!("must be a positive number, got {v}"),
-                ))
-            }
-        };
+        let positive = |v: f32, field: &str| crate::config::positive_in(path, field, v);
         match self.cage_config {
             CageConfig::Cube { edge } => positive(edge, "cage.edge")?,
             CageConfig::Box {

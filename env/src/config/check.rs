@@ -51,6 +51,19 @@ pub fn check(
     Ok(())
 }
 
+/// `value` of `field` must be positive and finite.
+pub fn positive_in(path: &Path, field: &str, value: f32) -> Result<(), ConfigError> {
+    if value > 0.0 && value.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::invalid(
+            path,
+            field,
+            format!("must be a positive number, got {value}"),
+        ))
+    }
+}
+
 /// A count must be at most `hi` (in `unit`).
 pub fn check_count(
     path: &Path,

@@ -32,7 +32,7 @@ mod site;
 mod species;
 
 pub use check::number;
-pub(crate) use check::{Param, check_count, params};
+pub(crate) use check::{Param, check_count, params, positive_in};
 pub use error::ConfigError;
 pub use range::Range;
 pub use read::{Overrides, read_toml};

@@ -1,6 +1,8 @@
 //! Species files, `species/<name>.toml`: [`SpeciesConfig`] and its [`SizeClass`]es.
 
-use super::check::{BL, LIGHT, SHARE, SPEED, TEMPERATURE, check, check_count, pair, range};
+use super::check::{
+    BL, LIGHT, SHARE, SPEED, TEMPERATURE, check, check_count, pair, positive_in, range,
+};
 use super::error::ConfigError;
 use super::range::Range;
 use crate::limits::{MAX_BODY_LENGTH_M, MAX_BODY_SCALE, MAX_DECISION_INTERVAL_S, MAX_SIZE_CLASSES};
@@ -97,17 +99,7 @@ fn default_colour() -> [f32; 3] {
 
 impl SpeciesConfig {
     pub(super) fn validate(&self, path: &Path) -> Result<(), ConfigError> {
-        let positive = |v: f32, field: &str| {
-            if v > 0.0 && v.is_finite() {
-                Ok(())
-            } else {
-                Err(ConfigError::invalid(
-                    path,
-                    field,
-                    format!("must be a positive number, got {v}"),
-                ))
-            }
-        };
+        let positive = |v: f32, field: &str| positive_in(path, field, v);
         positive(self.body_length, "body_length")?;
         positive(self.sense_range_bl, "sense_range_bl")?;
         positive(self.decision_interval, "decision_interval")?;
