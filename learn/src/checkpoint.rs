@@ -83,6 +83,24 @@ fn one_or_many<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Vec<Strin
 }
 
 impl RunState {
+    /// What an ONNX export of this run's behaviour `behaviour` (of `species`)
+    /// at `training_step` records.
+    pub fn onnx_metadata(
+        &self,
+        species: &str,
+        behaviour: &str,
+        training_step: u64,
+    ) -> crate::onnx::Metadata {
+        crate::onnx::Metadata {
+            species: species.into(),
+            behaviour: behaviour.into(),
+            scene: self.scene.clone(),
+            algorithm: self.algo.as_str().into(),
+            training_step,
+            run: self.run_id.clone(),
+        }
+    }
+
     pub fn save(&self, dir: &Path) -> Result<()> {
         save_json(&dir.join("state.json"), self)
     }

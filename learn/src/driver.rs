@@ -224,7 +224,43 @@ pub trait Learner {
     fn memory(&self) -> BufferMemory;
 }
 
-/// An algorithm: its configuration and how to build a behaviour's learner.
+/// The [`Trainer`] methods that read the config file's shared fields the
+/// same way in every algorithm: `algorithm`, `config_name`, `architecture`,
+/// `budget` and `settings`. The implementing type has `source: PathBuf` and a
+/// `config` with `hidden`, `layers`, `checkpoint_every`, `keep_checkpoints`,
+/// `progress_every` and `budget(species, phase)` (SPEC §8).
+#[macro_export]
+macro_rules! trainer_config_methods {
+    ($algorithm:expr) => {
+        fn algorithm(&self) -> $crate::Algorithm {
+            $algorithm
+        }
+
+        fn config_name(&self) -> String {
+            self.source.display().to_string()
+        }
+
+        fn architecture(&self) -> (usize, usize) {
+            (self.config.hidden, self.config.layers)
+        }
+
+        fn budget(&self, species: &str, phase: deepfoids_env::Phase) -> u64 {
+            self.config.budget(species, phase)
+        }
+
+        fn settings(&self) -> $crate::RunSettings {
+            $crate::RunSettings {
+                checkpoint_every: self.config.checkpoint_every,
+                keep_checkpoints: self.config.keep_checkpoints,
+                progress_every: self.config.progress_every,
+            }
+        }
+    };
+}
+
+/// An algorithm as the driver sees it: its config's answers, its memory and
+/// update plans, and how it builds a learner (fresh, resumed or transferred).
+/// PPO and SAC implement the first five with [`trainer_config_methods!`].
 pub trait Trainer {
     type Learner: Learner;
 
@@ -611,6 +647,9 @@ fn setup<T: Trainer>(
     })
 }
 
+/// Serialises seeding Burn's device and drawing initial weights ([`learners`]).
+static SEEDED_INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// One learner per behaviour of `env`: resumed from the checkpoint, else
 /// transferred from a source policy, else fresh.
 fn learners<T: Trainer>(
@@ -623,6 +662,10 @@ fn learners<T: Trainer>(
     let phase = args.scene.phase;
     let device = args.backend.device();
     let train_device = device.clone().autodiff();
+    // Burn's device RNG is one per process: held from the seed until every
+    // learner has drawn its weights, so that runs in one process (the test
+    // suites, `pipeline`) never interleave their draws.
+    let _seeded = SEEDED_INIT.lock().unwrap_or_else(|e| e.into_inner());
     device.seed(args.seed);
     let mut behaviours = Vec::new();
     for (b, info) in env.behaviours().iter().enumerate() {
@@ -845,14 +888,7 @@ fn save_all<L: Learner>(
         for b in behaviours {
             b.learner.save(tmp, &b.name, checkpoint)?;
             if onnx {
-                let meta = Metadata {
-                    species: b.species.clone(),
-                    behaviour: b.name.clone(),
-                    scene: state.scene.clone(),
-                    algorithm: state.algo.as_str().into(),
-                    training_step: b.agent_steps,
-                    run: state.run_id.clone(),
-                };
+                let meta = state.onnx_metadata(&b.species, &b.name, b.agent_steps);
                 let path = tmp.join(format!("{}.onnx", b.name));
                 std::fs::write(&path, b.learner.actor_onnx(&meta))
                     .map_err(LearnError::io(&path))?;

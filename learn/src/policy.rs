@@ -5,8 +5,31 @@ use crate::checkpoint::{BehaviourState, PolicySource, RunState, find_source, pol
 use crate::error::Result;
 use crate::onnx::Metadata;
 use deepfoids_env::config::ActionTiming;
+use deepfoids_env::rng::{Purpose, Stream};
 use deepfoids_env::{Env, Policy, PolicyError};
 use std::path::{Path, PathBuf};
+
+/// What keys the exploration noise of a batch's agents: agent `a` of a batch
+/// whose first fish is `first` draws from `(seed, first + a, tick)`, so a
+/// seeded run samples the same actions whatever the batching.
+#[derive(Clone, Copy, Debug)]
+pub struct NoiseKey {
+    pub seed: u64,
+    pub first: usize,
+    pub tick: u64,
+}
+
+impl NoiseKey {
+    /// The noise stream of agent `a` of the batch.
+    pub fn stream(&self, a: usize) -> Stream {
+        Stream::new(
+            self.seed,
+            Purpose::Exploration,
+            (self.first + a) as u64,
+            self.tick,
+        )
+    }
+}
 
 /// One behaviour's trained actor.
 pub trait Actor {
@@ -17,15 +40,8 @@ pub trait Actor {
     /// The same on Burn's own layers (the benchmark's and the tests' reference).
     fn deterministic_reference(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32>;
 
-    /// Sampled actions, the noise of agent `a` keyed by `(seed, first + a, tick)`.
-    fn sample(
-        &self,
-        grids: &[f32],
-        vectors: &[f32],
-        first: usize,
-        seed: u64,
-        tick: u64,
-    ) -> Vec<f32>;
+    /// Sampled actions, the noise of agent `a` from [`NoiseKey::stream`].
+    fn sample(&self, grids: &[f32], vectors: &[f32], key: NoiseKey) -> Vec<f32>;
 
     /// The actor as ONNX with ML-Agents' interface.
     fn onnx(&self, meta: &Metadata) -> Vec<u8>;
@@ -126,13 +142,12 @@ impl Policy for ActorPolicy {
             actions[b] = if self.deterministic {
                 actor.deterministic(&batch.grids, &batch.vectors)
             } else {
-                actor.sample(
-                    &batch.grids,
-                    &batch.vectors,
-                    batch.first,
-                    self.seed,
-                    out.tick,
-                )
+                let key = NoiseKey {
+                    seed: self.seed,
+                    first: batch.first,
+                    tick: out.tick,
+                };
+                actor.sample(&batch.grids, &batch.vectors, key)
             };
         }
         Ok(())

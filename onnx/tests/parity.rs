@@ -58,6 +58,18 @@ fn uniform(lim: f64, dev: &Device) -> burn::module::Param<Tensor<2>> {
     ))
 }
 
+/// The metadata of a seabream test policy trained by `algorithm`.
+fn seabream_meta(algorithm: &str, training_step: u64) -> Metadata {
+    Metadata {
+        species: "seabream".into(),
+        behaviour: "seabream_regular".into(),
+        scene: "seabream_default".into(),
+        algorithm: algorithm.into(),
+        training_step,
+        run: "test".into(),
+    }
+}
+
 #[test]
 fn tract_matches_the_burn_actor() {
     for kernels in [true, false] {
@@ -74,14 +86,7 @@ fn tract_matches_the_burn_actor() {
         let grid = Grids::Dense(g);
         let biggest = largest(model.actor(&grid, v.clone()).0);
         rescale(&mut model.actor_mean.weight, biggest);
-        let meta = Metadata {
-            species: "seabream".into(),
-            behaviour: "seabream_regular".into(),
-            scene: "seabream_default".into(),
-            algorithm: "ppo".into(),
-            training_step: 12345,
-            run: "test".into(),
-        };
+        let meta = seabream_meta("ppo", 12345);
         let (mean, _) = model.actor(&grid, v);
         let actor = PpoActor::new(model);
         let bytes = actor.onnx(&meta);
@@ -181,14 +186,7 @@ fn tract_matches_the_sac_actor() {
     let grid = Grids::Dense(g);
     let biggest = largest(actor.forward(&grid, v.clone()).0);
     rescale(&mut actor.mean.weight, biggest);
-    let meta = Metadata {
-        species: "seabream".into(),
-        behaviour: "seabream_regular".into(),
-        scene: "seabream_default".into(),
-        algorithm: "sac".into(),
-        training_step: 777,
-        run: "test".into(),
-    };
+    let meta = seabream_meta("sac", 777);
     let bytes = export_policy(
         &actor.body,
         Head::Squashed {

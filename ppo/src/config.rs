@@ -142,38 +142,15 @@ impl PpoConfig {
     /// need together is checked before a run starts (`driver::check_run`).
     pub fn check_sizes(&self, path: &std::path::Path) -> Result<(), ConfigError> {
         use deepfoids_learn::plan::*;
+        #[rustfmt::skip]
         let sizes = [
             ("hidden", self.hidden, 1, MAX_HIDDEN, "SPEC §8: 128"),
             ("layers", self.layers, 1, MAX_LAYERS, "SPEC §8: 4"),
             ("epochs", self.epochs, 1, MAX_EPOCHS, "Table 4.4: 3"),
-            (
-                "time_horizon",
-                self.time_horizon,
-                1,
-                MAX_TIME_HORIZON,
-                "Table 4.4: 64",
-            ),
-            (
-                "buffer_size",
-                self.buffer_size,
-                1,
-                MAX_BUFFER,
-                "Table 4.4: 10240",
-            ),
-            (
-                "batch_size",
-                self.batch_size,
-                1,
-                self.buffer_size as u64,
-                "at most buffer_size; Table 4.4: 1024",
-            ),
-            (
-                "keep_checkpoints",
-                self.keep_checkpoints,
-                1,
-                MAX_KEEP_CHECKPOINTS,
-                "5",
-            ),
+            ("time_horizon", self.time_horizon, 1, MAX_TIME_HORIZON, "Table 4.4: 64"),
+            ("buffer_size", self.buffer_size, 1, MAX_BUFFER, "Table 4.4: 10240"),
+            ("batch_size", self.batch_size, 1, self.buffer_size as u64, "at most buffer_size; Table 4.4: 1024"),
+            ("keep_checkpoints", self.keep_checkpoints, 1, MAX_KEEP_CHECKPOINTS, "5"),
         ];
         for (field, value, lo, hi, usual) in sizes {
             check_size(path, field, value as u64, lo, hi, usual)?;
@@ -256,65 +233,20 @@ mod tests {
     #[test]
     fn each_bad_value_names_its_own_field_and_range() {
         let path = std::path::Path::new("configs/train/ppo.toml");
-        let cases: [(PpoConfig, &str); 8] = [
-            (
-                PpoConfig {
-                    time_horizon: 0,
-                    ..Default::default()
-                },
-                "field `time_horizon`: must be at least 1, got 0",
-            ),
-            (
-                PpoConfig {
-                    epochs: 0,
-                    ..Default::default()
-                },
-                "field `epochs`: must be at least 1, got 0",
-            ),
-            (
-                PpoConfig {
-                    hidden: 0,
-                    ..Default::default()
-                },
-                "field `hidden`: must be at least 1, got 0",
-            ),
-            (
-                PpoConfig {
-                    batch_size: 0,
-                    ..Default::default()
-                },
-                "field `batch_size`: must be at least 1, got 0",
-            ),
-            (
-                PpoConfig {
-                    buffer_size: 100,
-                    ..Default::default()
-                },
-                "field `buffer_size`: must be at least batch_size (1024), got 100",
-            ),
-            (
-                PpoConfig {
-                    gae_lambda: 1.5,
-                    ..Default::default()
-                },
-                "field `gae_lambda`: must lie in [0, 1], got 1.5",
-            ),
-            (
-                PpoConfig {
-                    max_grad_norm: -1.0,
-                    ..Default::default()
-                },
-                "field `max_grad_norm`: must be a finite number above 0, got -1",
-            ),
-            (
-                PpoConfig {
-                    progress_every: 0,
-                    ..Default::default()
-                },
-                "field `progress_every`: must be at least 1, got 0",
-            ),
+        #[rustfmt::skip]
+        let cases: [(fn(&mut PpoConfig), &str); 8] = [
+            (|c| c.time_horizon = 0, "field `time_horizon`: must be at least 1, got 0"),
+            (|c| c.epochs = 0, "field `epochs`: must be at least 1, got 0"),
+            (|c| c.hidden = 0, "field `hidden`: must be at least 1, got 0"),
+            (|c| c.batch_size = 0, "field `batch_size`: must be at least 1, got 0"),
+            (|c| c.buffer_size = 100, "field `buffer_size`: must be at least batch_size (1024), got 100"),
+            (|c| c.gae_lambda = 1.5, "field `gae_lambda`: must lie in [0, 1], got 1.5"),
+            (|c| c.max_grad_norm = -1.0, "field `max_grad_norm`: must be a finite number above 0, got -1"),
+            (|c| c.progress_every = 0, "field `progress_every`: must be at least 1, got 0"),
         ];
-        for (c, want) in cases {
+        for (edit, want) in cases {
+            let mut c = PpoConfig::default();
+            edit(&mut c);
             let e = c.validate(path).unwrap_err().to_string();
             assert_eq!(e, format!("configs/train/ppo.toml: {want}"));
         }

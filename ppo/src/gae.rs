@@ -51,23 +51,30 @@ pub const TERMINAL: u8 = 2;
 mod tests {
     use super::*;
 
+    /// The three steps below: rewards (1, 2, 3), values (0.5, 1, 1.5), V(s_3) = 2,
+    /// γ = 0.9, λ = 0.5; returns (advantages, returns).
+    fn three_steps(stops: [u8; 3]) -> ([f32; 3], [f32; 3]) {
+        let (mut a, mut r) = ([0.0; 3], [0.0; 3]);
+        gae(
+            &[1.0, 2.0, 3.0],
+            &[0.5, 1.0, 1.5],
+            2.0,
+            &stops,
+            0.9,
+            0.5,
+            &mut a,
+            &mut r,
+        );
+        (a, r)
+    }
+
     /// γ = 0.9, λ = 0.5, three steps, rewards (1, 2, 3), values (0.5, 1, 1.5), V(s_3) = 2:
     /// δ_2 = 3 + 0.9·2 − 1.5 = 3.3;          A_2 = 3.3
     /// δ_1 = 2 + 0.9·1.5 − 1 = 2.35;         A_1 = 2.35 + 0.45·3.3 = 3.835
     /// δ_0 = 1 + 0.9·1 − 0.5 = 1.4;          A_0 = 1.4 + 0.45·3.835 = 3.12575
     #[test]
     fn continuing_sequence() {
-        let (mut a, mut r) = ([0.0; 3], [0.0; 3]);
-        gae(
-            &[1.0, 2.0, 3.0],
-            &[0.5, 1.0, 1.5],
-            2.0,
-            &[0, 0, 0],
-            0.9,
-            0.5,
-            &mut a,
-            &mut r,
-        );
+        let (a, r) = three_steps([0, 0, 0]);
         for (x, y) in a.iter().zip([3.125_75, 3.835, 3.3]) {
             assert!((x - y).abs() < 1e-5, "{a:?}");
         }
@@ -78,17 +85,7 @@ mod tests {
     /// A_2 = 3.3; A_0 = 1.4 + 0.45·1 = 1.85.
     #[test]
     fn termination_stops_bootstrap_and_carry() {
-        let (mut a, mut r) = ([0.0; 3], [0.0; 3]);
-        gae(
-            &[1.0, 2.0, 3.0],
-            &[0.5, 1.0, 1.5],
-            2.0,
-            &[0, TERMINAL, 0],
-            0.9,
-            0.5,
-            &mut a,
-            &mut r,
-        );
+        let (a, _) = three_steps([0, TERMINAL, 0]);
         for (x, y) in a.iter().zip([1.85, 1.0, 3.3]) {
             assert!((x - y).abs() < 1e-5, "{a:?}");
         }
@@ -98,17 +95,7 @@ mod tests {
     /// does not carry A_2: A_1 = 2.35, A_0 = 1.4 + 0.45·2.35 = 2.4575.
     #[test]
     fn truncation_bootstraps_without_carry() {
-        let (mut a, mut r) = ([0.0; 3], [0.0; 3]);
-        gae(
-            &[1.0, 2.0, 3.0],
-            &[0.5, 1.0, 1.5],
-            2.0,
-            &[0, BOOTSTRAP, 0],
-            0.9,
-            0.5,
-            &mut a,
-            &mut r,
-        );
+        let (a, _) = three_steps([0, BOOTSTRAP, 0]);
         for (x, y) in a.iter().zip([2.4575, 2.35, 3.3]) {
             assert!((x - y).abs() < 1e-5, "{a:?}");
         }

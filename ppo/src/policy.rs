@@ -6,12 +6,11 @@ use crate::model::ActorCritic;
 use crate::train::{model_config, model_file};
 use burn::prelude::*;
 use deepfoids_env::VECTOR_OBS;
-use deepfoids_env::rng::{Purpose, Stream};
 use deepfoids_learn::checkpoint::{BehaviourState, RunState, load_module};
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::onnx::Metadata;
-use deepfoids_learn::policy::Actor;
+use deepfoids_learn::policy::{Actor, NoiseKey};
 use deepfoids_learn::tensor::{tensor2, tensor4, to_vec};
 use deepfoids_learn::{ACTIONS, Algorithm, Result};
 use std::path::Path;
@@ -66,17 +65,10 @@ impl Actor for PpoActor {
         to_vec(mean.clamp(-1.0, 1.0))
     }
 
-    fn sample(
-        &self,
-        grids: &[f32],
-        vectors: &[f32],
-        first: usize,
-        seed: u64,
-        tick: u64,
-    ) -> Vec<f32> {
+    fn sample(&self, grids: &[f32], vectors: &[f32], key: NoiseKey) -> Vec<f32> {
         let mut out = self.mean(grids, vectors);
         for (a, act) in out.chunks_mut(ACTIONS).enumerate() {
-            let mut noise = Stream::new(seed, Purpose::Exploration, (first + a) as u64, tick);
+            let mut noise = key.stream(a);
             for (k, x) in act.iter_mut().enumerate() {
                 *x = (*x + self.log_std[k].exp() * noise.normal()).clamp(-1.0, 1.0);
             }

@@ -47,17 +47,18 @@ use crate::rollout::{Rollout, stack_of};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 use deepfoids_env::rng::{Purpose, Stream};
-use deepfoids_env::{BehaviourBatch, Phase, VECTOR_OBS};
+use deepfoids_env::{BehaviourBatch, VECTOR_OBS};
 use deepfoids_learn::checkpoint::{
     BehaviourState, behaviour_file, load_json, load_module, save_json, save_module,
 };
-use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, RunSettings, StepCtx, Trainer};
+use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, StepCtx, Trainer};
 use deepfoids_learn::frames::FRAME_BYTES;
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::logger::Scalars;
 use deepfoids_learn::onnx::Metadata;
 use deepfoids_learn::plan::{self, MemoryPlan, Part, UpdatePlan};
+use deepfoids_learn::policy::NoiseKey;
 use deepfoids_learn::tensor::{ForceInit, ParamIds, clip_grad_norm, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, BodyConfig, Grids, LearnError, Result};
 use deepfoids_sensors::STACK;
@@ -160,29 +161,7 @@ fn fresh_learner(cfg: &PpoConfig, ctx: &LearnerCtx<'_>, model: ActorCritic) -> P
 impl Trainer for Ppo {
     type Learner = PpoLearner;
 
-    fn algorithm(&self) -> Algorithm {
-        Algorithm::Ppo
-    }
-
-    fn config_name(&self) -> String {
-        self.source.display().to_string()
-    }
-
-    fn architecture(&self) -> (usize, usize) {
-        (self.config.hidden, self.config.layers)
-    }
-
-    fn budget(&self, species: &str, phase: Phase) -> u64 {
-        self.config.budget(species, phase)
-    }
-
-    fn settings(&self) -> RunSettings {
-        RunSettings {
-            checkpoint_every: self.config.checkpoint_every,
-            keep_checkpoints: self.config.keep_checkpoints,
-            progress_every: self.config.progress_every,
-        }
-    }
+    deepfoids_learn::trainer_config_methods!(Algorithm::Ppo);
 
     /// Networks: actor and critic bodies, the mean head `[hidden → 3]`, the
     /// log-std `[3]` and the value head `[hidden → 1]`. Experience: at most
@@ -278,8 +257,7 @@ impl Trainer for Ppo {
         state: &BehaviourState,
     ) -> Result<PpoLearner> {
         let cfg = &self.config;
-        let model = model_config(cfg.hidden, cfg.layers, cfg.init_log_std).init(&ctx.train_device);
-        let model = load_module(model, &model_file(dir, &state.name))?;
+        let model = self.load_model(ctx, dir, &state.name)?;
         let of = behaviour_file(dir, &state.name, "optim.bpk");
         let optim = adam(cfg).load(&of).map_err(|e| LearnError::Record {
             action: "load",
@@ -304,10 +282,17 @@ impl Trainer for Ppo {
         from: &Path,
         source: &BehaviourState,
     ) -> Result<PpoLearner> {
+        let model = self.load_model(ctx, from, &source.name)?;
+        Ok(fresh_learner(&self.config, ctx, model))
+    }
+}
+
+impl Ppo {
+    /// Behaviour `name`'s actor-critic from policy or checkpoint folder `dir`.
+    fn load_model(&self, ctx: &LearnerCtx<'_>, dir: &Path, name: &str) -> Result<ActorCritic> {
         let cfg = &self.config;
         let model = model_config(cfg.hidden, cfg.layers, cfg.init_log_std).init(&ctx.train_device);
-        let model = load_module(model, &model_file(from, &source.name))?;
-        Ok(fresh_learner(cfg, ctx, model))
+        load_module(model, &model_file(dir, name))
     }
 }
 
@@ -468,13 +453,13 @@ impl PpoLearner {
         let values = out.pop().expect("the critic's output");
         let mean = out.pop().expect("the actor's output");
         let mut sampled = vec![0.0f32; self.n * ACTIONS];
+        let key = NoiseKey {
+            seed: ctx.seed,
+            first: self.first,
+            tick: ctx.tick,
+        };
         for a in 0..self.n {
-            let mut noise = Stream::new(
-                ctx.seed,
-                Purpose::Exploration,
-                (self.first + a) as u64,
-                ctx.tick,
-            );
+            let mut noise = key.stream(a);
             for k in 0..ACTIONS {
                 let i = a * ACTIONS + k;
                 sampled[i] = mean[i] + self.log_std[k].exp() * noise.normal();

@@ -115,30 +115,13 @@ impl SacConfig {
     /// need together is checked before a run starts (`driver::check_run`).
     pub fn check_sizes(&self, path: &std::path::Path) -> Result<(), ConfigError> {
         use deepfoids_learn::plan::*;
+        #[rustfmt::skip]
         let sizes = [
             ("hidden", self.hidden, 1, MAX_HIDDEN, "SPEC §8: 128"),
             ("layers", self.layers, 1, MAX_LAYERS, "SPEC §8: 4"),
-            (
-                "buffer_size",
-                self.buffer_size,
-                1,
-                MAX_BUFFER,
-                "Table 4.5: 102400",
-            ),
-            (
-                "batch_size",
-                self.batch_size,
-                1,
-                self.buffer_size as u64,
-                "at most buffer_size; Table 4.5: 1024",
-            ),
-            (
-                "keep_checkpoints",
-                self.keep_checkpoints,
-                1,
-                MAX_KEEP_CHECKPOINTS,
-                "2",
-            ),
+            ("buffer_size", self.buffer_size, 1, MAX_BUFFER, "Table 4.5: 102400"),
+            ("batch_size", self.batch_size, 1, self.buffer_size as u64, "at most buffer_size; Table 4.5: 1024"),
+            ("keep_checkpoints", self.keep_checkpoints, 1, MAX_KEEP_CHECKPOINTS, "2"),
         ];
         for (field, value, lo, hi, usual) in sizes {
             check_size(path, field, value as u64, lo, hi, usual)?;
@@ -262,37 +245,16 @@ mod tests {
     #[test]
     fn each_grouped_field_is_named_by_itself() {
         let path = std::path::Path::new("sac.toml");
-        let cases: [(SacConfig, &str); 4] = [
-            (
-                SacConfig {
-                    layers: 0,
-                    ..Default::default()
-                },
-                "field `layers`: must be at least 1, got 0",
-            ),
-            (
-                SacConfig {
-                    summary_every: 0,
-                    ..Default::default()
-                },
-                "field `summary_every`: must be at least 1, got 0",
-            ),
-            (
-                SacConfig {
-                    batch_size: 0,
-                    ..Default::default()
-                },
-                "field `batch_size`: must be at least 1, got 0",
-            ),
-            (
-                SacConfig {
-                    learning_rate: [0.001, 2.0],
-                    ..Default::default()
-                },
-                "field `learning_rate[1]`: must lie in (0, 1], got 2",
-            ),
+        #[rustfmt::skip]
+        let cases: [(fn(&mut SacConfig), &str); 4] = [
+            (|c| c.layers = 0, "field `layers`: must be at least 1, got 0"),
+            (|c| c.summary_every = 0, "field `summary_every`: must be at least 1, got 0"),
+            (|c| c.batch_size = 0, "field `batch_size`: must be at least 1, got 0"),
+            (|c| c.learning_rate = [0.001, 2.0], "field `learning_rate[1]`: must lie in (0, 1], got 2"),
         ];
-        for (c, want) in cases {
+        for (edit, want) in cases {
+            let mut c = SacConfig::default();
+            edit(&mut c);
             let e = c.validate(path).unwrap_err().to_string();
             assert_eq!(e, format!("sac.toml: {want}"));
         }

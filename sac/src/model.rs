@@ -19,6 +19,7 @@ use deepfoids_learn::body::{infer_net, small_linear};
 use deepfoids_learn::kernels::dense::DensePack;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::onnx::{Head, Metadata, export_policy};
+use deepfoids_learn::policy::NoiseKey;
 use deepfoids_learn::{ACTIONS, Body, BodyConfig, Grids};
 
 const HALF_LOG_2PI: f32 = 0.918_938_5;
@@ -241,20 +242,17 @@ pub fn squashed_sample(
 }
 
 /// `tanh(μ + σ·ε)` for actor outputs `heads` `[n, 2·ACTIONS]` (mean, raw
-/// log-std, turned into log σ by `log_std`); agent `a`'s noise is keyed by
-/// `(seed, first + a, tick)`, so acting and training draw the same actions.
+/// log-std, turned into log σ by `log_std`); agent `a`'s noise is
+/// [`NoiseKey::stream`], so acting and training draw the same actions.
 pub fn squash_heads(
     heads: &[f32],
-    first: usize,
-    seed: u64,
-    tick: u64,
+    key: NoiseKey,
     log_std: impl Fn(f32) -> f32,
     actions: &mut [f32],
 ) {
-    use deepfoids_env::rng::{Purpose, Stream};
     use deepfoids_learn::ACTIONS;
     for (a, row) in heads.chunks_exact(2 * ACTIONS).enumerate() {
-        let mut noise = Stream::new(seed, Purpose::Exploration, (first + a) as u64, tick);
+        let mut noise = key.stream(a);
         let eps = [noise.normal(), noise.normal(), noise.normal()];
         let ls: [f32; ACTIONS] = std::array::from_fn(|k| log_std(row[ACTIONS + k]));
         squashed_sample_f32(

@@ -10,7 +10,7 @@ use deepfoids_learn::checkpoint::{BehaviourState, RunState, load_json, load_modu
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::onnx::Metadata;
-use deepfoids_learn::policy::Actor;
+use deepfoids_learn::policy::{Actor, NoiseKey};
 use deepfoids_learn::tensor::{tensor2, tensor4, to_vec};
 use deepfoids_learn::{ACTIONS, Algorithm, Result};
 use std::path::Path;
@@ -65,24 +65,10 @@ impl Actor for SacActor {
         to_vec(mean.tanh())
     }
 
-    fn sample(
-        &self,
-        grids: &[f32],
-        vectors: &[f32],
-        first: usize,
-        seed: u64,
-        tick: u64,
-    ) -> Vec<f32> {
+    fn sample(&self, grids: &[f32], vectors: &[f32], key: NoiseKey) -> Vec<f32> {
         let heads = self.heads(grids, vectors);
         let mut out = vec![0.0; heads.len() / 2];
-        squash_heads(
-            &heads,
-            first,
-            seed,
-            tick,
-            |x| self.actor.squash_log_std(x),
-            &mut out,
-        );
+        squash_heads(&heads, key, |x| self.actor.squash_log_std(x), &mut out);
         out
     }
 

@@ -47,16 +47,17 @@ use burn::module::{ModuleMapper, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 use deepfoids_env::rng::{Purpose, Stream};
-use deepfoids_env::{BehaviourBatch, Phase, VECTOR_OBS};
+use deepfoids_env::{BehaviourBatch, VECTOR_OBS};
 use deepfoids_learn::checkpoint::{
     BehaviourState, behaviour_file, load_json, load_module, save_json, save_module,
 };
-use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, RunSettings, StepCtx, Trainer};
+use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, StepCtx, Trainer};
 use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::{InferNet, TrunkInputs};
 use deepfoids_learn::logger::Scalars;
 use deepfoids_learn::onnx::Metadata;
 use deepfoids_learn::plan::{self, MemoryPlan, Part, UpdatePlan};
+use deepfoids_learn::policy::NoiseKey;
 use deepfoids_learn::tensor::{ForceInit, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, Grids, LearnError, Result};
 use serde::{Deserialize, Serialize};
@@ -189,29 +190,7 @@ pub fn soft_update(target: TwinQ, online: &TwinQ, tau: f32) -> TwinQ {
 impl Trainer for Sac {
     type Learner = SacLearner;
 
-    fn algorithm(&self) -> Algorithm {
-        Algorithm::Sac
-    }
-
-    fn config_name(&self) -> String {
-        self.source.display().to_string()
-    }
-
-    fn architecture(&self) -> (usize, usize) {
-        (self.config.hidden, self.config.layers)
-    }
-
-    fn budget(&self, species: &str, phase: Phase) -> u64 {
-        self.config.budget(species, phase)
-    }
-
-    fn settings(&self) -> RunSettings {
-        RunSettings {
-            checkpoint_every: self.config.checkpoint_every,
-            keep_checkpoints: self.config.keep_checkpoints,
-            progress_every: self.config.progress_every,
-        }
-    }
+    deepfoids_learn::trainer_config_methods!(Algorithm::Sac);
 
     /// Networks: the actor (body, mean and log-std heads `[hidden → 3]`),
     /// the twin critics and their targets (bodies taking the action, heads
@@ -271,21 +250,7 @@ impl Trainer for Sac {
         let critic = net.init_critic(&ctx.train_device);
         critic.visit(&mut ForceInit);
         let target = critic.valid();
-        let parts = Parts {
-            actor,
-            critic,
-            target,
-            actor_optim: adam(cfg),
-            critic_optim: adam(cfg),
-            state: SacState {
-                log_std_bounds: cfg.log_std_bounds,
-                entropy: EntropyCoef::new(cfg.init_alpha(ctx.phase)),
-                updates: 0,
-                replay_saved: false,
-            },
-            replay: None,
-        };
-        Ok(SacLearner::new(cfg.clone(), ctx, parts))
+        Ok(self.fresh_learner(ctx, (actor, critic, target), cfg.log_std_bounds))
     }
 
     fn resume_learner(
@@ -311,10 +276,11 @@ impl Trainer for Sac {
             );
             None
         };
+        let (actor, critic, target) = load_nets(&net, ctx, dir, name)?;
         let parts = Parts {
-            actor: load_module(net.init_actor(&ctx.train_device), &actor_file(dir, name))?,
-            critic: load_module(net.init_critic(&ctx.train_device), &critic_file(dir, name))?,
-            target: load_module(net.init_critic(&ctx.device), &target_file(dir, name))?,
+            actor,
+            critic,
+            target,
             actor_optim: load_optim(cfg, &behaviour_file(dir, name, "optim.bpk"))?,
             critic_optim: load_optim(cfg, &behaviour_file(dir, name, "critic-optim.bpk"))?,
             state: st,
@@ -333,22 +299,51 @@ impl Trainer for Sac {
         let name = &source.name;
         let src: SacState = load_json(&state_file(from, name), "SAC's state")?;
         let net = net_config(cfg.hidden, cfg.layers, src.log_std_bounds);
+        let nets = load_nets(&net, ctx, from, name)?;
+        Ok(self.fresh_learner(ctx, nets, src.log_std_bounds))
+    }
+}
+
+impl Sac {
+    /// A learner with networks `(actor, critic, target)` and fresh
+    /// optimisers, entropy coefficient and counters.
+    fn fresh_learner(
+        &self,
+        ctx: &LearnerCtx<'_>,
+        (actor, critic, target): (Actor, TwinQ, TwinQ),
+        log_std_bounds: [f32; 2],
+    ) -> SacLearner {
+        let cfg = &self.config;
         let parts = Parts {
-            actor: load_module(net.init_actor(&ctx.train_device), &actor_file(from, name))?,
-            critic: load_module(net.init_critic(&ctx.train_device), &critic_file(from, name))?,
-            target: load_module(net.init_critic(&ctx.device), &target_file(from, name))?,
+            actor,
+            critic,
+            target,
             actor_optim: adam(cfg),
             critic_optim: adam(cfg),
             state: SacState {
-                log_std_bounds: src.log_std_bounds,
+                log_std_bounds,
                 entropy: EntropyCoef::new(cfg.init_alpha(ctx.phase)),
                 updates: 0,
                 replay_saved: false,
             },
             replay: None,
         };
-        Ok(SacLearner::new(cfg.clone(), ctx, parts))
+        SacLearner::new(cfg.clone(), ctx, parts)
     }
+}
+
+/// Behaviour `name`'s actor, critic and target critic from folder `dir`.
+fn load_nets(
+    net: &SacNetConfig,
+    ctx: &LearnerCtx<'_>,
+    dir: &Path,
+    name: &str,
+) -> Result<(Actor, TwinQ, TwinQ)> {
+    Ok((
+        load_module(net.init_actor(&ctx.train_device), &actor_file(dir, name))?,
+        load_module(net.init_critic(&ctx.train_device), &critic_file(dir, name))?,
+        load_module(net.init_critic(&ctx.device), &target_file(dir, name))?,
+    ))
 }
 
 /// What a learner is built from.
@@ -477,14 +472,12 @@ impl SacLearner {
     /// `tanh(μ + σ·ε)` for the actor's output `[n, 6]` (mean, raw log-std),
     /// the noise of agent `a` keyed by `(seed, first + a, tick)`.
     fn squash(&self, out: &[f32], actions: &mut [f32], seed: u64, tick: u64) {
-        squash_heads(
-            out,
-            self.first,
+        let key = NoiseKey {
             seed,
+            first: self.first,
             tick,
-            |x| self.actor.squash_log_std(x),
-            actions,
-        );
+        };
+        squash_heads(out, key, |x| self.actor.squash_log_std(x), actions);
     }
 
     /// Act on the batch's observations and, when training, store the row.

@@ -7,7 +7,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 use deepfoids_experiments::load_actor;
 use deepfoids_learn::checkpoint::{RunState, latest_checkpoint, policy_dir};
-use deepfoids_learn::onnx::{Metadata, OPSET};
+use deepfoids_learn::onnx::OPSET;
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -54,14 +54,7 @@ pub fn run(args: &ExportArgs) -> Result<()> {
             names.join(", ")
         ),
     };
-    let meta = Metadata {
-        species: behaviour.species.clone(),
-        behaviour: behaviour.name.clone(),
-        scene: state.scene.clone(),
-        algorithm: state.algo.as_str().into(),
-        training_step: behaviour.agent_steps,
-        run: state.run_id.clone(),
-    };
+    let meta = state.onnx_metadata(&behaviour.species, &behaviour.name, behaviour.agent_steps);
     let bytes = load_actor(&dir, &state, behaviour)?.onnx(&meta);
     deepfoids_io::write_atomic(&args.out, &bytes)?;
     println!(
