@@ -19,6 +19,7 @@
 
 use crate::boxes::Detection;
 use crate::error::{CountError, Result};
+use deepfoids_onnx::runtime::why_not_onnx;
 use image::RgbImage;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -53,18 +54,6 @@ fn shape_text(s: &[Option<usize>]) -> String {
     format!("[{}]", d.join(", "))
 }
 
-/// Why `bytes` did not decode as an ONNX protobuf, for a person: an empty or
-/// text file is called so (tract says only "Reading proto model").
-fn why_not_onnx(bytes: &[u8], error: &TractError) -> String {
-    if bytes.is_empty() {
-        "the file is empty".into()
-    } else if std::str::from_utf8(bytes).is_ok_and(|t| !t.contains('\0')) {
-        "it is a text file; an ONNX model is a binary protobuf".into()
-    } else {
-        format!("{error:#}")
-    }
-}
-
 impl Detector {
     /// Load `path`, running windows of `window` pixels (unless the model fixes its input).
     pub fn load(path: &Path, window: u32) -> Result<Self> {
@@ -82,7 +71,7 @@ impl Detector {
             .model_for_read(&mut bytes.as_slice())
             .map_err(|e| CountError::NotOnnxFile {
                 path: path.to_path_buf(),
-                why: why_not_onnx(&bytes, &e),
+                why: why_not_onnx(&bytes, &e, ""),
             })?;
         let metadata = read_metadata(&bytes);
         let fixed = model

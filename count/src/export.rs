@@ -12,6 +12,7 @@
 use crate::model::{DetectorNet, LAYERS, SLOPE, STRIDE};
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
+use deepfoids_learn::onnx::build::{ints, node, value_info};
 use deepfoids_learn::onnx::proto::*;
 
 pub const OPSET: i64 = 13;
@@ -23,55 +24,6 @@ fn values<const D: usize>(t: Tensor<D>) -> (Vec<i64>, Vec<u8>) {
     let dims = t.dims().iter().map(|&d| d as i64).collect();
     let v = t.into_data().try_into_vec::<f32>().expect("f32 parameters");
     (dims, v.iter().flat_map(|x| x.to_le_bytes()).collect())
-}
-
-fn ints(name: &str, v: &[i64]) -> AttributeProto {
-    AttributeProto {
-        name: name.into(),
-        ints: v.to_vec(),
-        r#type: attribute_type::INTS,
-        ..Default::default()
-    }
-}
-
-fn node(
-    op: &str,
-    name: &str,
-    inputs: &[&str],
-    output: &str,
-    attribute: Vec<AttributeProto>,
-) -> NodeProto {
-    NodeProto {
-        input: inputs.iter().map(|s| s.to_string()).collect(),
-        output: vec![output.to_string()],
-        name: name.into(),
-        op_type: op.into(),
-        attribute,
-        domain: String::new(),
-    }
-}
-
-fn value_info(name: &str, dims: &[Result<i64, &str>]) -> ValueInfoProto {
-    ValueInfoProto {
-        name: name.into(),
-        r#type: Some(TypeProto {
-            tensor_type: Some(TypeProtoTensor {
-                elem_type: data_type::FLOAT,
-                shape: Some(TensorShapeProto {
-                    dim: dims
-                        .iter()
-                        .map(|d| Dimension {
-                            value: Some(match d {
-                                Ok(v) => DimensionValue::DimValue(*v),
-                                Err(p) => DimensionValue::DimParam(p.to_string()),
-                            }),
-                        })
-                        .collect(),
-                }),
-            }),
-        }),
-        doc_string: String::new(),
-    }
 }
 
 struct Graph {

@@ -8,6 +8,7 @@ use deepfoids_count::detector::{Detector, DetectorFormat, to_chw};
 use deepfoids_count::export::export_detector;
 use deepfoids_count::model::DetectorNetConfig;
 use deepfoids_count::{CountError, InputCamera};
+use deepfoids_learn::onnx::build::{self, ints, tensor, value_info};
 use deepfoids_learn::onnx::proto::*;
 use std::path::PathBuf;
 
@@ -17,53 +18,14 @@ fn tmp(name: &str) -> PathBuf {
     d.join(name)
 }
 
-fn f32_tensor(name: &str, dims: &[i64], v: &[f32]) -> TensorProto {
-    TensorProto {
-        dims: dims.to_vec(),
-        data_type: data_type::FLOAT,
-        name: name.into(),
-        raw_data: v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-    }
-}
-
-fn ints(name: &str, v: &[i64]) -> AttributeProto {
-    AttributeProto {
-        name: name.into(),
-        ints: v.to_vec(),
-        r#type: attribute_type::INTS,
-        ..Default::default()
-    }
-}
-
 fn info(name: &str, dims: &[i64]) -> ValueInfoProto {
-    ValueInfoProto {
-        name: name.into(),
-        r#type: Some(TypeProto {
-            tensor_type: Some(TypeProtoTensor {
-                elem_type: data_type::FLOAT,
-                shape: Some(TensorShapeProto {
-                    dim: dims
-                        .iter()
-                        .map(|&d| Dimension {
-                            value: Some(DimensionValue::DimValue(d)),
-                        })
-                        .collect(),
-                }),
-            }),
-        }),
-        doc_string: String::new(),
-    }
+    let dims: Vec<Result<i64, &str>> = dims.iter().map(|&d| Ok(d)).collect();
+    value_info(name, &dims)
 }
 
+/// Node `op` named after its output.
 fn node(op: &str, inputs: &[&str], output: &str, attribute: Vec<AttributeProto>) -> NodeProto {
-    NodeProto {
-        input: inputs.iter().map(|s| s.to_string()).collect(),
-        output: vec![output.into()],
-        name: output.into(),
-        op_type: op.into(),
-        attribute,
-        domain: String::new(),
-    }
+    build::node(op, output, inputs, output, attribute)
 }
 
 /// A YOLOv8-shaped model: `images` [1, 3, 32, 32] → Conv (zero weights,
@@ -83,8 +45,8 @@ fn yolo_like(table: &[f32], out_dims: &[i64]) -> Vec<u8> {
         ],
         name: "yolo_like".into(),
         initializer: vec![
-            f32_tensor("w", &[5, 3, 32, 8], &vec![0.0; 5 * 3 * 32 * 8]),
-            f32_tensor("table", &[1, 5, 4], table),
+            tensor("w", &[5, 3, 32, 8], &vec![0.0; 5 * 3 * 32 * 8]),
+            tensor("table", &[1, 5, 4], table),
         ],
         doc_string: String::new(),
         input: vec![info("images", &[1, 3, 32, 32])],

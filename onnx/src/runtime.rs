@@ -58,12 +58,13 @@ pub struct OnnxPolicy {
 }
 
 /// Why `bytes` did not decode as an ONNX protobuf, for a person: an empty or
-/// text file is called so (tract says only "Reading proto model").
-pub fn why_not_onnx(bytes: &[u8], error: &TractError) -> String {
+/// text file is called so (tract says only "Reading proto model"); `writer`
+/// ends the text file's case (e.g. ", as `deepfoids export` writes").
+pub fn why_not_onnx(bytes: &[u8], error: &TractError, writer: &str) -> String {
     if bytes.is_empty() {
         "the file is empty".into()
     } else if std::str::from_utf8(bytes).is_ok_and(|t| !t.contains('\0')) {
-        "it is a text file; an ONNX model is a binary protobuf, as `deepfoids export` writes".into()
+        format!("it is a text file; an ONNX model is a binary protobuf{writer}")
     } else {
         format!("{error:#}")
     }
@@ -79,7 +80,7 @@ impl OnnxPolicy {
             .model_for_read(&mut bytes.as_slice())
             .map_err(|e| OnnxError::NotOnnx {
                 path: path.to_path_buf(),
-                why: why_not_onnx(&bytes, &e),
+                why: why_not_onnx(&bytes, &e, ", as `deepfoids export` writes"),
             })?;
         let not_onnx = |error| OnnxError::Unloadable {
             path: path.to_path_buf(),

@@ -19,6 +19,7 @@
 //! input stays `[batch, 18, 20, 34]`. Metadata: species, scene, algorithm,
 //! training step, behaviour and the observation and action layouts.
 
+use super::build::{float, int, ints, node, tensor, value_info};
 use super::proto::*;
 use crate::body::{ACTIONS, Body};
 use crate::kernels::geometry::{AZ_PAD, K1, K2, S1, S2};
@@ -55,44 +56,8 @@ struct Builder {
     init: Vec<TensorProto>,
 }
 
-fn tensor(name: &str, dims: &[usize], values: &[f32]) -> TensorProto {
-    TensorProto {
-        dims: dims.iter().map(|&d| d as i64).collect(),
-        data_type: data_type::FLOAT,
-        name: name.into(),
-        raw_data: values.iter().flat_map(|v| v.to_le_bytes()).collect(),
-    }
-}
-
-fn ints(name: &str, v: &[i64]) -> AttributeProto {
-    AttributeProto {
-        name: name.into(),
-        ints: v.to_vec(),
-        r#type: attribute_type::INTS,
-        ..Default::default()
-    }
-}
-
-fn int(name: &str, v: i64) -> AttributeProto {
-    AttributeProto {
-        name: name.into(),
-        i: Some(v),
-        r#type: attribute_type::INT,
-        ..Default::default()
-    }
-}
-
-fn float(name: &str, v: f32) -> AttributeProto {
-    AttributeProto {
-        name: name.into(),
-        f: Some(v),
-        r#type: attribute_type::FLOAT,
-        ..Default::default()
-    }
-}
-
-fn values<const D: usize>(t: Tensor<D>) -> (Vec<usize>, Vec<f32>) {
-    let dims = t.dims().to_vec();
+fn values<const D: usize>(t: Tensor<D>) -> (Vec<i64>, Vec<f32>) {
+    let dims = t.dims().iter().map(|&d| d as i64).collect();
     (
         dims,
         t.into_data().try_into_vec::<f32>().expect("f32 parameters"),
@@ -108,14 +73,7 @@ impl Builder {
         output: &str,
         attrs: Vec<AttributeProto>,
     ) -> String {
-        self.nodes.push(NodeProto {
-            input: inputs.iter().map(|s| s.to_string()).collect(),
-            output: vec![output.to_string()],
-            name: name.into(),
-            op_type: op.into(),
-            attribute: attrs,
-            domain: String::new(),
-        });
+        self.nodes.push(node(op, name, inputs, output, attrs));
         output.to_string()
     }
 
@@ -157,8 +115,11 @@ impl Builder {
             Some(b) => self.constant(&format!("{prefix}.bias"), b.val()),
             None => {
                 let [_, out] = linear.weight.val().dims();
-                self.init
-                    .push(tensor(&format!("{prefix}.bias"), &[out], &vec![0.0; out]));
+                self.init.push(tensor(
+                    &format!("{prefix}.bias"),
+                    &[out as i64],
+                    &vec![0.0; out],
+                ));
                 format!("{prefix}.bias")
             }
         };
@@ -195,29 +156,6 @@ impl Builder {
             &format!("{prefix}.out"),
             vec![float("alpha", alpha)],
         )
-    }
-}
-
-fn value_info(name: &str, dims: &[Result<i64, &str>]) -> ValueInfoProto {
-    ValueInfoProto {
-        name: name.into(),
-        r#type: Some(TypeProto {
-            tensor_type: Some(TypeProtoTensor {
-                elem_type: data_type::FLOAT,
-                shape: Some(TensorShapeProto {
-                    dim: dims
-                        .iter()
-                        .map(|d| Dimension {
-                            value: Some(match d {
-                                Ok(v) => DimensionValue::DimValue(*v),
-                                Err(p) => DimensionValue::DimParam(p.to_string()),
-                            }),
-                        })
-                        .collect(),
-                }),
-            }),
-        }),
-        doc_string: String::new(),
     }
 }
 

@@ -2,6 +2,7 @@
 //! hand-declared protobuf messages ([`proto`]). Running ONNX files (tract) is
 //! the `deepfoids-onnx` crate's business.
 
+pub mod build;
 pub mod export;
 pub mod proto;
 
