@@ -12,7 +12,7 @@
 //!   distance — with the training's wall-clock time and agent-steps/s.
 
 use crate::evaluate::{PALETTE, evaluate};
-use crate::plot::{FONT, pe, save_png};
+use crate::plot::{FONT, draw_legend, legend_line, pe, save_png};
 use crate::{bounds, load_scene, load_trained, lock_dir};
 use anyhow::{Context, Result, bail};
 use deepfoids_env::limits::MAX_SEEDS;
@@ -428,18 +428,9 @@ fn plot_curves(
                     ))
                     .map_err(pe)?
                     .label(label.clone())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                    });
+                    .legend(legend_line(colour));
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK.mix(0.4))
-                .label_font((FONT, 13))
-                .position(SeriesLabelPosition::LowerRight)
-                .draw()
-                .map_err(pe)?;
+            draw_legend(&mut chart, SeriesLabelPosition::LowerRight, 13)?;
         }
         Ok(())
     })

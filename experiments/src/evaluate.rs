@@ -1,7 +1,7 @@
 //! Evaluating a school and writing what `eval` reports: `metrics.csv`,
 //! `summary.json`, and the P/M, depth and trajectory plots.
 
-use crate::plot::{FONT, pe, save_png};
+use crate::plot::{FONT, draw_legend, legend_line, pe, save_png};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
 use deepfoids_env::policy::{act_and_step, action_buffers};
@@ -309,18 +309,9 @@ fn plot_pm(path: &Path, eval: &Evaluation, s: &Summary, title: &str) -> Result<(
                 ))
                 .map_err(pe)?
                 .label(label)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                });
+                .legend(legend_line(colour));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::MiddleRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font((FONT, 14))
-            .draw()
-            .map_err(pe)?;
+        draw_legend(&mut chart, SeriesLabelPosition::MiddleRight, 14)?;
         Ok(())
     })
 }
@@ -362,18 +353,9 @@ fn plot_depth(path: &Path, s: &Summary, height: f32, title: &str) -> Result<()> 
                 .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
                 .map_err(pe)?
                 .label(format!("{} (mean {:.2} m)", b.name, b.mean_depth))
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                });
+                .legend(legend_line(colour));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font((FONT, 14))
-            .draw()
-            .map_err(pe)?;
+        draw_legend(&mut chart, SeriesLabelPosition::LowerRight, 14)?;
         Ok(())
     })
 }
@@ -444,9 +426,9 @@ fn plot_tracks(path: &Path, env: &Env, eval: &Evaluation, title: &str) -> Result
                     .draw_series(LineSeries::new(seg, colour.stroke_width(2)))
                     .map_err(pe)?;
                 if si == 0 {
-                    series.label(format!("fish {fish}")).legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                    });
+                    series
+                        .label(format!("fish {fish}"))
+                        .legend(legend_line(colour));
                 }
             }
             if let Some(last) = recent.last() {
@@ -455,14 +437,7 @@ fn plot_tracks(path: &Path, env: &Env, eval: &Evaluation, title: &str) -> Result
                     .map_err(pe)?;
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.3))
-            .label_font((FONT, 13))
-            .draw()
-            .map_err(pe)?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 13)?;
         Ok(())
     })
 }

@@ -212,35 +212,26 @@ fn tables(rows: &[Row]) -> (String, String) {
     );
     for r in rows {
         let s = &r.summary;
-        let train = r
-            .train_reward
-            .map_or("–".to_string(), |x| format!("{x:.3}"));
-        md.push_str(&format!(
-            "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {} | {:.1} | {:.1} |\n",
-            r.scene,
-            r.phase,
-            r.steps,
-            train,
-            s.reward_per_decision,
-            s.p_mean,
-            s.m_mean,
-            s.dominant_state.as_str(),
-            s.boundary_collisions_per_fish_hour,
-            s.neighbour_collisions_per_fish_hour
-        ));
-        csv.push_str(&format!(
-            "{},{},{},{},{:.5},{:.5},{:.5},{},{:.3},{:.3}\n",
-            r.scene,
-            r.phase,
-            r.steps,
-            r.train_reward.map_or(String::new(), |x| format!("{x:.5}")),
-            s.reward_per_decision,
-            s.p_mean,
-            s.m_mean,
-            s.dominant_state.as_str(),
-            s.boundary_collisions_per_fish_hour,
-            s.neighbour_collisions_per_fish_hour
-        ));
+        let train = |f: fn(f64) -> String, none: &str| r.train_reward.map_or(none.into(), f);
+        // The cells of both tables: the Markdown one rounds for reading.
+        let cells = |train: String, d: usize, c: usize| {
+            [
+                r.scene.clone(),
+                r.phase.to_string(),
+                r.steps.to_string(),
+                train,
+                format!("{:.d$}", s.reward_per_decision),
+                format!("{:.d$}", s.p_mean),
+                format!("{:.d$}", s.m_mean),
+                s.dominant_state.as_str().to_string(),
+                format!("{:.c$}", s.boundary_collisions_per_fish_hour),
+                format!("{:.c$}", s.neighbour_collisions_per_fish_hour),
+            ]
+        };
+        let md_row = cells(train(|x| format!("{x:.3}"), "–"), 3, 1);
+        let csv_row = cells(train(|x| format!("{x:.5}"), ""), 5, 3);
+        md.push_str(&format!("| {} |\n", md_row.join(" | ")));
+        csv.push_str(&format!("{}\n", csv_row.join(",")));
     }
     (md, csv)
 }

@@ -5,7 +5,7 @@
 use super::claims::{Claim, Verdict};
 use super::measure::{Measured, RPD_TAG};
 use super::{Profile, ReproduceOptions, StageRecord};
-use crate::plot::{FONT, pe, save_png};
+use crate::plot::{FONT, draw_legend, legend_line, pe, save_png};
 use anyhow::{Context, Result};
 use deepfoids_io::write_atomic;
 use plotters::prelude::*;
@@ -90,18 +90,9 @@ fn panel<DB: DrawingBackend>(
                 .map_err(pe)?
         };
         let c = l.colour;
-        series
-            .label(l.label.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        series.label(l.label.clone()).legend(legend_line(c));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK.mix(0.3))
-        .label_font((FONT, 13))
-        .position(legend)
-        .draw()
-        .map_err(pe)?;
+    draw_legend(&mut chart, legend, 13)?;
     Ok(())
 }
 

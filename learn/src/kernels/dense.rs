@@ -2,7 +2,7 @@
 //! `z = x·W + b`, `y = z·σ(z)`; backward `dz = dy·σ(z)·(1 + z·(1 − σ(z)))`,
 //! `dW = xᵀ·dz`, `db = Σ dz`, `dx = dz·Wᵀ`. Burn's `Linear` layout: W `[in, out]`.
 
-use super::{TASK, sgemm, sum_rows};
+use super::{TASK, par_tasks, sgemm, sum_rows};
 use rayon::prelude::*;
 
 #[inline]
@@ -126,21 +126,7 @@ impl DensePack {
             }
             g
         };
-        let (parts, dx): (Vec<DenseGrads>, Option<Vec<f32>>) = if input_grad {
-            let mut dx = vec![0.0f32; n * di];
-            let parts = dx
-                .par_chunks_mut(TASK * di)
-                .enumerate()
-                .map(|(t, d)| task(t, Some(d)))
-                .collect();
-            (parts, Some(dx))
-        } else {
-            let parts = (0..n.div_ceil(TASK))
-                .into_par_iter()
-                .map(|t| task(t, None))
-                .collect();
-            (parts, None)
-        };
+        let (parts, dx) = par_tasks(n, di, input_grad, task);
         let mut parts = parts.into_iter();
         let mut g = parts.next().unwrap_or(DenseGrads {
             w: vec![0.0; di * dout],

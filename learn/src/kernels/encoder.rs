@@ -20,7 +20,7 @@
 use super::geometry::*;
 pub use super::grids::GridsRef;
 use super::sparse::{self, Nonzero, Spans, nonzeros, transpose};
-use super::{SUB, TASK, add_bias, leaky_backward, leaky_inplace, sgemm, sum_rows};
+use super::{SUB, TASK, add_bias, leaky_backward, leaky_inplace, par_tasks, sgemm, sum_rows};
 use deepfoids_sensors::{AZ_CELLS, STACKED_LEN};
 use rayon::prelude::*;
 
@@ -609,21 +609,7 @@ impl EncoderPack {
             );
             g
         };
-        let (parts, dx): (Vec<EncoderGrads>, Option<Vec<f32>>) = if input_grad {
-            let mut dx = vec![0.0f32; n * STACKED_LEN];
-            let parts = dx
-                .par_chunks_mut(TASK * STACKED_LEN)
-                .enumerate()
-                .map(|(t, d)| task(t, Some(d)))
-                .collect();
-            (parts, Some(dx))
-        } else {
-            let parts = (0..n.div_ceil(TASK))
-                .into_par_iter()
-                .map(|t| task(t, None))
-                .collect();
-            (parts, None)
-        };
+        let (parts, dx) = par_tasks(n, STACKED_LEN, input_grad, task);
         // Summed in task order: the same bits whatever the number of threads.
         let mut parts = parts.into_iter();
         let mut grads = parts

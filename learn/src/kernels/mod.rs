@@ -29,6 +29,7 @@ pub mod ops;
 pub mod sparse;
 
 use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
+use rayon::prelude::*;
 
 /// Samples per parallel task.
 pub const TASK: usize = 64;
@@ -181,6 +182,34 @@ pub fn sum_rows(x: &[f32], rows: usize, rs: usize, acc: &mut [f32]) {
         for (a, v) in acc.iter_mut().zip(&x[r * rs..r * rs + n]) {
             *a += v;
         }
+    }
+}
+
+/// The backward passes' parallel loop: `task(t, dx)` for each task `t` of
+/// [`TASK`] samples out of `n`, the results in task order (so that summing
+/// them gives the same bits on any number of threads). With `input_grad`,
+/// task `t` also gets its rows of a fresh `[n, width]` input gradient, which
+/// is returned beside the results.
+pub fn par_tasks<G: Send>(
+    n: usize,
+    width: usize,
+    input_grad: bool,
+    task: impl Fn(usize, Option<&mut [f32]>) -> G + Sync,
+) -> (Vec<G>, Option<Vec<f32>>) {
+    if input_grad {
+        let mut dx = vec![0.0f32; n * width];
+        let parts = dx
+            .par_chunks_mut(TASK * width)
+            .enumerate()
+            .map(|(t, d)| task(t, Some(d)))
+            .collect();
+        (parts, Some(dx))
+    } else {
+        let parts = (0..n.div_ceil(TASK))
+            .into_par_iter()
+            .map(|t| task(t, None))
+            .collect();
+        (parts, None)
     }
 }
 
