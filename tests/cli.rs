@@ -3,7 +3,7 @@
 mod support;
 
 use std::path::PathBuf;
-use support::{deepfoids, temp_path, text};
+use support::{cli, temp_path, text};
 
 fn temp(name: &str) -> PathBuf {
     temp_path("cli", name)
@@ -11,7 +11,7 @@ fn temp(name: &str) -> PathBuf {
 
 #[test]
 fn scenes_lists_every_scene_with_density() {
-    let o = deepfoids(&["scenes"]);
+    let o = cli("scenes");
     assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
     for id in [
@@ -31,17 +31,10 @@ fn scenes_lists_every_scene_with_density() {
 #[test]
 fn simulate_writes_trajectories() {
     let out = temp("simulate");
-    let o = deepfoids(&[
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "2",
-        "--seed",
-        "4",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "simulate --scene seabream_default --seconds 2 --seed 4 --out {}",
+        out.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let csv = std::fs::read_to_string(out.join("trajectories.csv")).unwrap();
     let mut lines = csv.lines();
@@ -69,17 +62,10 @@ fn simulate_writes_trajectories() {
     assert_eq!(rows.last().unwrap()[0], "2.000");
     // Same seed, same file.
     let again = temp("simulate-again");
-    deepfoids(&[
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "2",
-        "--seed",
-        "4",
-        "--out",
-        again.to_str().unwrap(),
-    ]);
+    cli(&format!(
+        "simulate --scene seabream_default --seconds 2 --seed 4 --out {}",
+        again.display()
+    ));
     assert_eq!(
         csv,
         std::fs::read_to_string(again.join("trajectories.csv")).unwrap()
@@ -90,17 +76,10 @@ fn simulate_writes_trajectories() {
 #[test]
 fn sensor_view_writes_a_png() {
     let out = temp("view").join("view.png");
-    let o = deepfoids(&[
-        "sensor-view",
-        "--scene",
-        "seabream_default",
-        "--fish",
-        "3",
-        "--step",
-        "5",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "sensor-view --scene seabream_default --fish 3 --step 5 --out {}",
+        out.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let img = image::open(&out).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (1800, 560));
@@ -118,7 +97,7 @@ fn sensor_view_writes_a_png() {
 
 #[test]
 fn an_unknown_scene_fails_with_the_list() {
-    let o = deepfoids(&["simulate", "--scene", "salmon"]);
+    let o = cli("simulate --scene salmon");
     assert!(!o.status.success());
     let t = text(&o);
     assert!(
@@ -134,22 +113,10 @@ fn an_unknown_scene_fails_with_the_list() {
 
 #[test]
 fn an_unknown_policy_fails_clearly() {
-    let o = deepfoids(&[
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--policy",
-        "genius",
-    ]);
+    let o = cli("simulate --scene seabream_default --policy genius");
     assert!(!o.status.success());
     assert!(text(&o).contains("unknown policy `genius`"), "{}", text(&o));
-    let o = deepfoids(&[
-        "simulate",
-        "--scene",
-        "seabream_default",
-        "--policy",
-        "runs/none/policy.onnx",
-    ]);
+    let o = cli("simulate --scene seabream_default --policy runs/none/policy.onnx");
     assert!(!o.status.success());
     assert!(
         text(&o).contains("policy `runs/none/policy.onnx` does not exist"),
@@ -164,19 +131,11 @@ fn an_unknown_policy_fails_clearly() {
 fn eval_writes_metrics_summary_and_plots() {
     for policy in ["foids", "boids", "random"] {
         let out = temp(&format!("eval-{policy}"));
-        let o = deepfoids(&[
-            "eval",
-            "--scene",
-            "seabream_50",
-            "--policy",
+        let o = cli(&format!(
+            "eval --scene seabream_50 --policy {} --seconds 5 --seed 2 --out {}",
             policy,
-            "--seconds",
-            "5",
-            "--seed",
-            "2",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+            out.display()
+        ));
         assert!(o.status.success(), "{}", text(&o));
         assert!(
             text(&o).contains("P ") && text(&o).contains("state:"),
@@ -225,17 +184,10 @@ fn eval_writes_metrics_summary_and_plots() {
 #[test]
 fn simulate_takes_the_baselines_too() {
     let out = temp("simulate-foids");
-    let o = deepfoids(&[
-        "simulate",
-        "--scene",
-        "yellowtail_default",
-        "--policy",
-        "foids",
-        "--seconds",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "simulate --scene yellowtail_default --policy foids --seconds 1 --out {}",
+        out.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("policy foids"));
 }
@@ -245,23 +197,10 @@ fn simulate_takes_the_baselines_too() {
 #[test]
 fn train_export_and_eval_through_onnx() {
     let runs = temp("train");
-    let o = deepfoids(&[
-        "train",
-        "--scene",
-        "seabream_default",
-        "--steps",
-        "600",
-        "--allow-no-update",
-        "--seed",
-        "5",
-        "--runs-dir",
-        runs.to_str().unwrap(),
-        "--run-id",
-        "tiny",
-        "--eval-seconds",
-        "0",
-        "--quiet",
-    ]);
+    let o = cli(&format!(
+        "train --scene seabream_default --steps 600 --allow-no-update --seed 5 --runs-dir {} --run-id tiny --eval-seconds 0 --quiet",
+        runs.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let run = runs.join("tiny");
     for f in [
@@ -274,20 +213,10 @@ fn train_export_and_eval_through_onnx() {
         assert!(run.join(f).exists(), "{f} missing");
     }
     // Refuses to overwrite without --resume/--force.
-    let again = deepfoids(&[
-        "train",
-        "--scene",
-        "seabream_default",
-        "--steps",
-        "600",
-        "--allow-no-update",
-        "--seed",
-        "5",
-        "--runs-dir",
-        runs.to_str().unwrap(),
-        "--run-id",
-        "tiny",
-    ]);
+    let again = cli(&format!(
+        "train --scene seabream_default --steps 600 --allow-no-update --seed 5 --runs-dir {} --run-id tiny",
+        runs.display()
+    ));
     assert!(
         !again.status.success() && text(&again).contains("--resume"),
         "{}",
@@ -295,13 +224,11 @@ fn train_export_and_eval_through_onnx() {
     );
 
     let onnx = runs.join("policy.onnx");
-    let o = deepfoids(&[
-        "export",
-        "--run",
-        run.to_str().unwrap(),
-        "--out",
-        onnx.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "export --run {} --out {}",
+        run.display(),
+        onnx.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("opset 9"), "{}", text(&o));
     // The run's own final/<behaviour>.onnx is the same file.
@@ -310,22 +237,11 @@ fn train_export_and_eval_through_onnx() {
         std::fs::read(run.join("final/seabream_regular.onnx")).unwrap()
     );
     // A SAC run does not start from a PPO run.
-    let o = deepfoids(&[
-        "train",
-        "--algo",
-        "sac",
-        "--scene",
-        "seabream_default",
-        "--phase",
-        "transfer",
-        "--init-from",
-        run.to_str().unwrap(),
-        "--runs-dir",
-        runs.to_str().unwrap(),
-        "--run-id",
-        "sac-from-ppo",
-        "--quiet",
-    ]);
+    let o = cli(&format!(
+        "train --algo sac --scene seabream_default --phase transfer --init-from {} --runs-dir {} --run-id sac-from-ppo --quiet",
+        run.display(),
+        runs.display()
+    ));
     assert!(
         !o.status.success() && text(&o).contains("holds a ppo policy; sac is needed"),
         "{}",
@@ -334,21 +250,12 @@ fn train_export_and_eval_through_onnx() {
     let mut pm = vec![];
     for policy in [onnx.to_str().unwrap(), run.to_str().unwrap()] {
         let out = runs.join(format!("eval-{}", pm.len()));
-        let o = deepfoids(&[
-            "eval",
-            "--scene",
-            "seabream_default",
-            "--policy",
-            policy,
-            "--seconds",
-            "3",
-            "--seed",
-            "9",
-            // The mean action: the ONNX runtime and Burn draw samples differently.
+        let o = cli(&format!(
+            "eval --scene seabream_default --policy {} --seconds 3 --seed 9 {} --out {}",
+            policy, // The mean action: the ONNX runtime and Burn draw samples differently.
             "--deterministic",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+            out.display()
+        ));
         assert!(o.status.success(), "{}", text(&o));
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
@@ -365,15 +272,10 @@ fn train_export_and_eval_through_onnx() {
         pm[1]
     );
     // A seabream policy cannot drive a coho scene.
-    let o = deepfoids(&[
-        "eval",
-        "--scene",
-        "coho_small",
-        "--policy",
-        onnx.to_str().unwrap(),
-        "--seconds",
-        "1",
-    ]);
+    let o = cli(&format!(
+        "eval --scene coho_small --policy {} --seconds 1",
+        onnx.display()
+    ));
     assert!(
         !o.status.success() && text(&o).contains("seabream policy"),
         "{}",
@@ -387,23 +289,12 @@ fn train_export_and_eval_through_onnx() {
 fn compare_ppo_and_sac_runs() {
     let runs = temp("compare");
     for algo in ["ppo", "sac"] {
-        let o = deepfoids(&[
-            "train",
-            "--algo",
+        let o = cli(&format!(
+            "train --algo {} --scene seabream_default --steps 1000 --allow-no-update --runs-dir {} --run-id {} --eval-seconds 0 --quiet",
             algo,
-            "--scene",
-            "seabream_default",
-            "--steps",
-            "1000",
-            "--allow-no-update",
-            "--runs-dir",
-            runs.to_str().unwrap(),
-            "--run-id",
-            algo,
-            "--eval-seconds",
-            "0",
-            "--quiet",
-        ]);
+            runs.display(),
+            algo
+        ));
         assert!(o.status.success(), "{algo}: {}", text(&o));
         let state = std::fs::read_to_string(runs.join(algo).join("final/state.json")).unwrap();
         assert!(state.contains(&format!("\"algo\": \"{algo}\"")), "{state}");
@@ -414,17 +305,12 @@ fn compare_ppo_and_sac_runs() {
     assert!(sac_csv.contains("Policy/Entropy Coeff") && !sac_csv.contains("Losses/Q1 Loss"));
     assert!(sac_csv.contains("Environment/Reward per Decision"));
     let out = runs.join("cmp");
-    let o = deepfoids(&[
-        "compare",
+    let o = cli(&format!(
+        "compare {} {} --seconds 2 --seeds 2 --out {}",
         runs.join("ppo").to_str().unwrap(),
         runs.join("sac").to_str().unwrap(),
-        "--seconds",
-        "2",
-        "--seeds",
-        "2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+        out.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let printed = text(&o);
     assert!(
@@ -448,15 +334,17 @@ fn compare_ppo_and_sac_runs() {
     assert!(md.contains("2 seed(s)"), "{md}");
 
     // One run is not a comparison; a missing run is named.
-    let o = deepfoids(&["compare", runs.join("ppo").to_str().unwrap(), "--out", "x"]);
+    let o = cli(&format!(
+        "compare {} --out x",
+        runs.join("ppo").to_str().unwrap()
+    ));
     assert!(!o.status.success());
-    let o = deepfoids(&[
-        "compare",
+    let o = cli(&format!(
+        "compare {} {} --out {}",
         runs.join("ppo").to_str().unwrap(),
         runs.join("nope").to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+        out.display()
+    ));
     assert!(
         !o.status.success() && text(&o).contains("nope"),
         "{}",
@@ -471,25 +359,10 @@ fn compare_ppo_and_sac_runs() {
 #[test]
 fn pipeline_all_species_transfers_into_three_species() {
     let runs = temp("pipeline-all");
-    let o = deepfoids(&[
-        "pipeline",
-        "--species",
-        "all",
-        "--scenes",
-        "three_species",
-        "--pretrain-steps",
-        "1",
-        "--transfer-steps",
-        "200",
-        "--allow-no-update",
-        "--eval-seconds",
-        "0.5",
-        "--runs-dir",
-        runs.to_str().unwrap(),
-        "--run-id",
-        "p",
-        "--quiet",
-    ]);
+    let o = cli(&format!(
+        "pipeline --species all --scenes three_species --pretrain-steps 1 --transfer-steps 200 --allow-no-update --eval-seconds 0.5 --runs-dir {} --run-id p --quiet",
+        runs.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let root = runs.join("p");
     let csv = std::fs::read_to_string(root.join("summary.csv")).unwrap();
@@ -534,14 +407,7 @@ fn pipeline_all_species_transfers_into_three_species() {
 /// it printed a rate with no update and nothing else).
 #[test]
 fn bench_train_warns_when_its_budget_makes_no_update() {
-    let o = deepfoids(&[
-        "bench",
-        "train",
-        "--scene",
-        "seabream_cube5",
-        "--steps",
-        "100",
-    ]);
+    let o = cli("bench train --scene seabream_cube5 --steps 100");
     assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
     assert!(

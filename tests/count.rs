@@ -7,7 +7,7 @@ mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use support::{deepfoids, temp_path, text};
+use support::{cli, deepfoids, temp_path, text};
 
 fn tmp(name: &str) -> PathBuf {
     temp_path("count", name)
@@ -66,23 +66,11 @@ fn detector_trains_and_counts_end_to_end() {
         ],
     );
     let det = tmp("det");
-    let o = deepfoids(&[
-        "train-detector",
-        "--data",
-        data.to_str().unwrap(),
-        "--out",
-        det.to_str().unwrap(),
-        "--steps",
-        "40",
-        "--batch",
-        "4",
-        "--crop",
-        "64",
-        "--base",
-        "4",
-        "--view-size",
-        "256",
-    ]);
+    let o = cli(&format!(
+        "train-detector --data {} --out {} --steps 40 --batch 4 --crop 64 --base 4 --view-size 256",
+        data.display(),
+        det.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
     assert!(
@@ -97,20 +85,12 @@ fn detector_trains_and_counts_end_to_end() {
     );
     assert!(last < first, "the loss did not fall: {first} → {last}");
     let out = tmp("out");
-    let o = deepfoids(&[
-        "count",
+    let o = cli(&format!(
+        "count {} --detector {} --view-size 256 --conf 0.3 --out {} --annotate 3",
         data.join("images").to_str().unwrap(),
-        "--detector",
         det.join("detector.onnx").to_str().unwrap(),
-        "--view-size",
-        "256",
-        "--conf",
-        "0.3",
-        "--out",
-        out.to_str().unwrap(),
-        "--annotate",
-        "3",
-    ]);
+        out.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let stdout = String::from_utf8_lossy(&o.stdout).to_string();
     let lines: Vec<&str> = stdout.lines().collect();
@@ -148,17 +128,11 @@ fn detector_trains_and_counts_end_to_end() {
             .output()
             .unwrap();
         assert!(enc.status.success(), "{}", text(&enc));
-        let o = deepfoids(&[
-            "count",
-            video.to_str().unwrap(),
-            "--detector",
-            det.join("detector.onnx").to_str().unwrap(),
-            "--view-size",
-            "256",
-            "--conf",
-            "0.3",
-            "--quiet",
-        ]);
+        let o = cli(&format!(
+            "count {} --detector {} --view-size 256 --conf 0.3 --quiet",
+            video.display(),
+            det.join("detector.onnx").to_str().unwrap()
+        ));
         assert!(o.status.success(), "{}", text(&o));
         assert_eq!(
             String::from_utf8_lossy(&o.stdout).lines().last().unwrap(),
@@ -168,23 +142,20 @@ fn detector_trains_and_counts_end_to_end() {
         eprintln!("note: no ffmpeg on this machine; the video path was not tested");
     }
     // Bad input is named.
-    let o = deepfoids(&[
-        "count",
-        "no/such/video.mp4",
-        "--detector",
-        det.join("detector.onnx").to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "count no/such/video.mp4 --detector {}",
+        det.join("detector.onnx").to_str().unwrap()
+    ));
     assert!(
         !o.status.success() && text(&o).contains("no/such/video.mp4"),
         "{}",
         text(&o)
     );
-    let o = deepfoids(&[
-        "count",
+    let o = cli(&format!(
+        "count {} --detector {}",
         data.join("images").to_str().unwrap(),
-        "--detector",
-        data.join("data.yaml").to_str().unwrap(),
-    ]);
+        data.join("data.yaml").to_str().unwrap()
+    ));
     assert!(
         !o.status.success()
             && text(&o).contains("data.yaml is not an ONNX model (it is a text file"),
@@ -210,15 +181,12 @@ fn image_stats_tells_sparse_from_dense() {
     let size = ["--frames", "2", "--width", "256", "--height", "256"];
     render("density_sparse", &sparse, &size);
     render("density_dense", &dense, &size);
-    let o = deepfoids(&[
-        "image-stats",
+    let o = cli(&format!(
+        "image-stats {} {} --out {} --names sparse,dense",
         sparse.join("images").to_str().unwrap(),
         dense.join("images").to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--names",
-        "sparse,dense",
-    ]);
+        out.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let csv = std::fs::read_to_string(out.join("annuli.csv")).unwrap();
     let rows: Vec<Vec<f64>> = csv

@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use support::{deepfoids, temp_path, text};
+use support::{cli, temp_path, text};
 
 /// A fresh, empty temporary folder.
 fn temp(name: &str) -> PathBuf {
@@ -36,21 +36,11 @@ fn gif_frames(path: &Path) -> (u16, u16, Vec<u16>) {
 fn replay_writes_a_page_and_a_gif() {
     let dir = temp("scene");
     let (html, gif) = (dir.join("r.html"), dir.join("r.gif"));
-    let o = deepfoids(&[
-        "replay",
-        "--scene",
-        "seabream_default",
-        "--policy",
-        "foids",
-        "--seconds",
-        "4",
-        "--seed",
-        "2",
-        "--out",
+    let o = cli(&format!(
+        "replay --scene seabream_default --policy foids --seconds 4 --seed 2 --out {} --gif {}",
         s(&html),
-        "--gif",
-        s(&gif),
-    ]);
+        s(&gif)
+    ));
     assert!(o.status.success(), "{}", text(&o));
     assert!(
         text(&o).contains("21 frames × 10 fish over 4.0 s (5.00 frames/s)"),
@@ -73,25 +63,11 @@ fn replay_writes_a_page_and_a_gif() {
         "top and side views side by side: {w} × {h}"
     );
 
-    let o = deepfoids(&[
-        "replay",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "2",
-        "--out",
+    let o = cli(&format!(
+        "replay --scene seabream_default --seconds 2 --out {} --gif {} --gif-view top --gif-speed 2 --gif-size 200 --fps 2",
         s(&html),
-        "--gif",
-        s(&gif),
-        "--gif-view",
-        "top",
-        "--gif-speed",
-        "2",
-        "--gif-size",
-        "200",
-        "--fps",
-        "2",
-    ]);
+        s(&gif)
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let (w, h, delays) = gif_frames(&gif);
     assert_eq!(delays, vec![25; 5], "t = 0, 0.5, … 2 s shown twice as fast");
@@ -109,20 +85,10 @@ fn replay_writes_a_page_and_a_gif() {
 fn eval_folders_replay_only_if_they_reproduce() {
     let dir = temp("eval");
     let run = dir.join("eval");
-    let o = deepfoids(&[
-        "eval",
-        "--scene",
-        "seabream_50",
-        "--policy",
-        "boids",
-        "--seconds",
-        "3",
-        "--seed",
-        "5",
-        "--out",
-        s(&run),
-        "--replay",
-    ]);
+    let o = cli(&format!(
+        "eval --scene seabream_50 --policy boids --seconds 3 --seed 5 --out {} --replay",
+        s(&run)
+    ));
     assert!(o.status.success(), "{}", text(&o));
     assert!(run.join("replay.html").is_file() && run.join("pm.png").is_file());
     let summary: serde_json::Value =
@@ -135,7 +101,7 @@ fn eval_folders_replay_only_if_they_reproduce() {
     assert_eq!(summary["deterministic"], false);
 
     let html = dir.join("again.html");
-    let o = deepfoids(&["replay", "--from", s(&run), "--out", s(&html)]);
+    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
     assert!(o.status.success(), "{}", text(&o));
     assert!(
         text(&o).contains("16 frames × 50 fish over 3.0 s"),
@@ -154,7 +120,7 @@ fn eval_folders_replay_only_if_they_reproduce() {
     cols[1] = "0.12345".into();
     lines[10] = cols.join(",");
     std::fs::write(&metrics, lines.join("\n")).unwrap();
-    let o = deepfoids(&["replay", "--from", s(&run), "--out", s(&html)]);
+    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
     assert!(!o.status.success());
     let t = text(&o);
     assert!(
@@ -171,34 +137,22 @@ fn eval_folders_replay_only_if_they_reproduce() {
 fn simulate_folders_replay_their_csv() {
     let dir = temp("simulate");
     let run = dir.join("sim");
-    let o = deepfoids(&[
-        "simulate",
-        "--scene",
-        "seabream_50",
-        "--policy",
-        "random",
-        "--seconds",
-        "2",
-        "--seed",
-        "3",
-        "--out",
-        s(&run),
-    ]);
+    let o = cli(&format!(
+        "simulate --scene seabream_50 --policy random --seconds 2 --seed 3 --out {}",
+        s(&run)
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let meta: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("simulate.json")).unwrap()).unwrap();
     assert_eq!(meta["scene"], "seabream_50");
     assert_eq!(meta["seed"], 3);
     let (html, gif) = (dir.join("sim.html"), dir.join("sim.gif"));
-    let o = deepfoids(&[
-        "replay",
-        "--from",
+    let o = cli(&format!(
+        "replay --from {} --out {} --gif {}",
         s(&run),
-        "--out",
         s(&html),
-        "--gif",
-        s(&gif),
-    ]);
+        s(&gif)
+    ));
     assert!(o.status.success(), "{}", text(&o));
     assert!(
         text(&o).contains("11 frames × 50 fish over 2.0 s"),
@@ -213,60 +167,54 @@ fn simulate_folders_replay_their_csv() {
         .unwrap()
         .replace("\"seed\": 3", "\"seed\": 4");
     std::fs::write(run.join("simulate.json"), wrong).unwrap();
-    let o = deepfoids(&["replay", "--from", s(&run), "--out", s(&html)]);
+    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
     assert!(!o.status.success());
     assert!(text(&o).contains("another scene or seed"), "{}", text(&o));
 
     std::fs::remove_file(run.join("simulate.json")).unwrap();
-    let o = deepfoids(&["replay", "--from", s(&run), "--out", s(&html)]);
+    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
     assert!(!o.status.success());
     assert!(
         text(&o).contains("simulate.json is missing"),
         "{}",
         text(&o)
     );
-    let o = deepfoids(&[
-        "replay",
-        "--from",
+    let o = cli(&format!(
+        "replay --from {} --scene seabream_50 --seed 3 --out {}",
         s(&run),
-        "--scene",
-        "seabream_50",
-        "--seed",
-        "3",
-        "--out",
-        s(&html),
-    ]);
+        s(&html)
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn replay_explains_what_it_needs() {
-    let o = deepfoids(&["replay"]);
+    let o = cli("replay");
     assert!(!o.status.success());
     assert!(
         text(&o).contains("give --scene (and --policy)"),
         "{}",
         text(&o)
     );
-    let o = deepfoids(&["replay", "--from", "runs/no-such-run"]);
+    let o = cli("replay --from runs/no-such-run");
     assert!(!o.status.success());
     assert!(
         text(&o).contains("--from runs/no-such-run: no such folder"),
         "{}",
         text(&o)
     );
-    let o = deepfoids(&["replay", "--from", "runs", "--policy", "boids"]);
+    let o = cli("replay --from runs --policy boids");
     assert!(!o.status.success());
     assert!(text(&o).contains("cannot be used with"), "{}", text(&o));
-    let o = deepfoids(&["replay", "--from", "runs"]);
+    let o = cli("replay --from runs");
     assert!(!o.status.success());
     assert!(
         text(&o).contains("neither trajectories.csv"),
         "{}",
         text(&o)
     );
-    let o = deepfoids(&["replay", "--scene", "seabream_default", "--fps", "0"]);
+    let o = cli("replay --scene seabream_default --fps 0");
     assert!(!o.status.success());
     assert!(
         text(&o).contains("--fps must be above 0 and at most 1000 frames/s, got 0"),

@@ -4,29 +4,16 @@
 //! is written by one process at a time.
 
 mod support;
+use deepfoids_testkit::copy_dir;
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-use support::{command, deepfoids, temp_path, text};
+use support::{cli, command, command_line, deepfoids, temp_path, text};
 
 fn temp(name: &str) -> PathBuf {
     temp_path("robust", name)
-}
-
-/// Copy folder `from` into `to`, sub-folders (the reward profiles) included.
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let p = e.unwrap().path();
-        let dest = to.join(p.file_name().unwrap());
-        if p.is_dir() {
-            copy_dir(&p, &dest);
-        } else {
-            std::fs::copy(&p, dest).unwrap();
-        }
-    }
 }
 
 /// A copy of `configs/` with `from` replaced by `to` in the seabream default scene.
@@ -108,15 +95,10 @@ fn a_scene_too_large_for_the_memory_is_refused_before_it_is_allocated() {
         .unwrap();
     assert!(o.status.success(), "{}", text(&o));
     // A replay page is checked too: a day of frames of 10 fish in 10 MiB.
-    let o = command(&[
-        "replay",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "86400",
-        "--out",
-        out.join("r.html").to_str().unwrap(),
-    ])
+    let o = command_line(&format!(
+        "replay --scene seabream_default --seconds 86400 --out {}",
+        out.join("r.html").to_str().unwrap()
+    ))
     .env("DEEPFOIDS_MEMORY_AVAILABLE", "10M")
     .output()
     .unwrap();
@@ -269,16 +251,16 @@ fn command_line_sizes_and_durations_have_bounds() {
 /// absurd counts.
 #[test]
 fn zero_threads_are_refused() {
-    let o = deepfoids(&["--threads", "0", "scenes"]);
+    let o = cli("--threads 0 scenes");
     assert_refused(
         &o,
         "invalid value '0' for '--threads <N>': 0 threads cannot run anything; give 1 or more, or leave --threads out for one thread per core",
     );
     assert_refused(
-        &deepfoids(&["--threads", "100000", "scenes"]),
+        &cli("--threads 100000 scenes"),
         "100000 is above the limit of 1024 threads",
     );
-    let o = deepfoids(&["--threads", "1", "scenes"]);
+    let o = cli("--threads 1 scenes");
     assert!(o.status.success(), "{}", text(&o));
 }
 
@@ -611,38 +593,19 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
 fn a_pipeline_in_use_is_refused() {
     let runs = temp("pipeline-lock");
     let lock = deepfoids_io::DirLock::acquire(&runs.join("p")).unwrap();
-    let o = deepfoids(&[
-        "pipeline",
-        "--species",
-        "seabream",
-        "--pretrain-steps",
-        "100",
-        "--transfer-steps",
-        "100",
-        "--allow-no-update",
-        "--runs-dir",
-        runs.to_str().unwrap(),
-        "--run-id",
-        "p",
-    ]);
+    let o = cli(&format!(
+        "pipeline --species seabream --pretrain-steps 100 --transfer-steps 100 --allow-no-update --runs-dir {} --run-id p",
+        runs.display()
+    ));
     assert_refused(&o, &format!("is in use by PID {}", std::process::id()));
     assert!(!runs.join("p").exists(), "no stage started");
     drop(lock);
     // Every stage's budget is checked before the first stage trains: a
     // transfer budget without an update is refused up front (issue 25).
-    let o = deepfoids(&[
-        "pipeline",
-        "--species",
-        "seabream",
-        "--pretrain-steps",
-        "20000",
-        "--transfer-steps",
-        "100",
-        "--runs-dir",
-        runs.to_str().unwrap(),
-        "--run-id",
-        "p",
-    ]);
+    let o = cli(&format!(
+        "pipeline --species seabream --pretrain-steps 20000 --transfer-steps 100 --runs-dir {} --run-id p",
+        runs.display()
+    ));
     assert_refused(&o, "pipeline stage seabream_default (transfer)");
     assert_refused(&o, "a budget of 100 agent steps makes no update");
     assert!(!runs.join("p").exists(), "no stage started");
@@ -655,38 +618,18 @@ fn a_pipeline_in_use_is_refused() {
         "behaviour,step,tag,value\nold,1,x,1\n",
     )
     .unwrap();
-    let o = deepfoids(&[
-        "pipeline",
-        "--species",
-        "seabream",
-        "--scenes",
-        "seabream_default",
-        "--pretrain-steps",
-        "100",
-        "--transfer-steps",
-        "100",
-        "--allow-no-update",
-        "--eval-seconds",
-        "1",
-        "--quiet",
-        "--runs-dir",
-        runs.to_str().unwrap(),
-        "--run-id",
-        "p",
-    ]);
+    let o = cli(&format!(
+        "pipeline --species seabream --scenes seabream_default --pretrain-steps 100 --transfer-steps 100 --allow-no-update --eval-seconds 1 --quiet --runs-dir {} --run-id p",
+        runs.display()
+    ));
     assert!(o.status.success(), "{}", text(&o));
     let csv = std::fs::read_to_string(stage.join("scalars.csv")).unwrap();
     assert!(!csv.contains("old,"), "{csv}");
     assert!(stage.join("final/state.json").is_file());
-    let o = deepfoids(&[
-        "pipeline",
-        "--species",
-        "seabream",
-        "--pretrain-steps",
-        "0",
-        "--runs-dir",
-        runs.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "pipeline --species seabream --pretrain-steps 0 --runs-dir {}",
+        runs.display()
+    ));
     assert_refused(&o, "--pretrain-steps 0 would train nothing");
     let _ = std::fs::remove_dir_all(&runs);
 }
@@ -783,15 +726,10 @@ fn replay_checks_its_outputs_before_it_simulates() {
     let dir = temp("replay-out");
     std::fs::create_dir_all(dir.join("page.html")).unwrap();
     let page = dir.join("page.html");
-    let o = deepfoids(&[
-        "replay",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "1",
-        "--out",
-        page.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "replay --scene seabream_default --seconds 1 --out {}",
+        page.display()
+    ));
     assert_refused(
         &o,
         &format!(
@@ -802,19 +740,11 @@ fn replay_checks_its_outputs_before_it_simulates() {
     assert_eq!(names_in(&dir), ["page.html"], "no temporary file");
     let html = dir.join("r.html");
     let gif = dir.join("r.gif");
-    let o = deepfoids(&[
-        "replay",
-        "--scene",
-        "seabream_default",
-        "--seconds",
-        "1",
-        "--out",
-        html.to_str().unwrap(),
-        "--gif",
-        gif.to_str().unwrap(),
-        "--gif-size",
-        "1000000",
-    ]);
+    let o = cli(&format!(
+        "replay --scene seabream_default --seconds 1 --out {} --gif {} --gif-size 1000000",
+        html.display(),
+        gif.display()
+    ));
     assert_refused(&o, "--gif-size must be 64 to 4096 pixels, got 1000000");
     assert_eq!(
         names_in(&dir),
@@ -914,15 +844,11 @@ fn configuration_mistakes_are_named_plainly() {
     // A binary scene file: its cause once.
     let scene = temp("binary-scene.toml");
     std::fs::write(&scene, [0x7f, b'E', b'L', b'F', 0xff, 0xfe, 0]).unwrap();
-    let o = deepfoids(&[
-        "eval",
-        "--scene",
-        scene.to_str().unwrap(),
-        "--seconds",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "eval --scene {} --seconds 1 --out {}",
+        scene.display(),
+        out.display()
+    ));
     assert_refused(
         &o,
         &format!("cannot read {}: not UTF-8 text", scene.display()),
@@ -943,17 +869,11 @@ fn a_text_file_as_an_onnx_policy_is_named() {
     let file = dir.join("policy.onnx");
     std::fs::write(&file, "not a model\n").unwrap();
     let out = temp("text-onnx-out");
-    let o = deepfoids(&[
-        "eval",
-        "--scene",
-        "seabream_default",
-        "--policy",
-        file.to_str().unwrap(),
-        "--seconds",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = cli(&format!(
+        "eval --scene seabream_default --policy {} --seconds 1 --out {}",
+        file.display(),
+        out.display()
+    ));
     assert_refused(
         &o,
         &format!("{} is not an ONNX model (it is a text file", file.display()),

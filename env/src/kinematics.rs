@@ -183,23 +183,29 @@ mod tests {
         assert!(roll.abs() <= 0.17 + 1e-6);
     }
 
-    /// Hand-computed: speed 0.1 m/s heading +z, BL 0.5, a0 = 0.5 with Δv_max 4.1 BL/s
-    /// → target 0.1 + 1.025 = 1.125 m/s, clamped to 1.9 BL/s × 0.5 = 0.95 m/s; no turn.
-    /// Δv_f = (0.95 − 0.1)·z = 0.85 z, over k = 10 steps: 0.085 z per step.
-    #[test]
-    fn speed_action_is_clamped_and_spread_over_k_steps() {
-        let d = decide(
-            [0.5, 0.0, 0.0],
+    /// [`decide`] for a fish of BL 0.5 m heading +z without roll: Δv_max
+    /// 4.1 BL/s, speeds 0.2–1.9 BL/s, turns up to 0.35 rad, roll up to 0.17 rad.
+    fn half_metre_fish(action: [f32; 3], speed: f32, k: usize) -> Decision {
+        decide(
+            action,
             Vec3::Z,
             0.0,
-            0.1,
+            speed,
             0.5,
             4.1,
             [0.2, 1.9],
             0.35,
             0.17,
-            10,
-        );
+            k,
+        )
+    }
+
+    /// Hand-computed: speed 0.1 m/s heading +z, BL 0.5, a0 = 0.5 with Δv_max 4.1 BL/s
+    /// → target 0.1 + 1.025 = 1.125 m/s, clamped to 1.9 BL/s × 0.5 = 0.95 m/s; no turn.
+    /// Δv_f = (0.95 − 0.1)·z = 0.85 z, over k = 10 steps: 0.085 z per step.
+    #[test]
+    fn speed_action_is_clamped_and_spread_over_k_steps() {
+        let d = half_metre_fish([0.5, 0.0, 0.0], 0.1, 10);
         assert!(
             close(d.dv_step, Vec3::new(0.0, 0.0, 0.085)),
             "{}",
@@ -207,18 +213,7 @@ mod tests {
         );
         // Clipping: a0 = −7 acts as −1; from 0.5 m/s the target 0.5 − 2.05 < 0 is
         // raised to the floor 0.2 BL/s × 0.5 = 0.1 m/s: Δv_f = −0.4 z, over 5 steps −0.08 z.
-        let d = decide(
-            [-7.0, 0.0, 0.0],
-            Vec3::Z,
-            0.0,
-            0.5,
-            0.5,
-            4.1,
-            [0.2, 1.9],
-            0.35,
-            0.17,
-            5,
-        );
+        let d = half_metre_fish([-7.0, 0.0, 0.0], 0.5, 5);
         assert!(
             close(d.dv_step, Vec3::new(0.0, 0.0, -0.08)),
             "{}",
@@ -240,18 +235,7 @@ mod tests {
         let (_, s) = integrate_velocity(Vec3::Z, 0.9, 0.2 * Vec3::Z, 0.0, range);
         assert!((s - 0.95).abs() < 1e-7, "{s}");
         // At the floor, a full brake asks for nothing: the target is the floor itself.
-        let d = decide(
-            [-1.0, 0.0, 0.0],
-            Vec3::Z,
-            0.0,
-            0.1,
-            0.5,
-            4.1,
-            [0.2, 1.9],
-            0.35,
-            0.17,
-            10,
-        );
+        let d = half_metre_fish([-1.0, 0.0, 0.0], 0.1, 10);
         assert!(close(d.dv_step, Vec3::ZERO), "{}", d.dv_step);
     }
 

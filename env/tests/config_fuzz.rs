@@ -19,52 +19,14 @@ use deepfoids_env::memory::{env_bytes, max_env_bytes};
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
 use proptest::prelude::*;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use toml::Value;
 
-struct Counting;
-
-thread_local! {
-    static LIVE: Cell<i64> = const { Cell::new(0) };
-    static PEAK: Cell<i64> = const { Cell::new(0) };
-}
-
-fn grew(bytes: i64) {
-    // `try_with`: the thread's counters may already be gone while it exits.
-    let _ = LIVE.try_with(|l| {
-        l.set(l.get() + bytes);
-        let _ = PEAK.try_with(|p| p.set(p.get().max(l.get())));
-    });
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        grew(layout.size() as i64);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        grew(-(layout.size() as i64));
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        grew(new_size as i64 - layout.size() as i64);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: deepfoids_testkit::Counting = deepfoids_testkit::Counting;
 
-/// Most bytes in use at once on this thread while `f` runs, above the start.
-fn peak_during<T>(f: impl FnOnce() -> T) -> (T, i64) {
-    let start = LIVE.with(Cell::get);
-    PEAK.with(|p| p.set(start));
-    let out = f();
-    (out, PEAK.with(Cell::get) - start)
-}
+use deepfoids_testkit::thread_peak_during as peak_during;
 
 /// Loading a scene (five small TOML files of at most 1 MiB each) stays below this.
 const LOAD_BOUND: i64 = 16 << 20;

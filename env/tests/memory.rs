@@ -6,46 +6,15 @@ use deepfoids_env::config::{CageConfig, Range};
 use deepfoids_env::memory::env_bytes;
 use deepfoids_env::{Env, Phase, Scene};
 use proptest::test_runner::{Config, TestRunner};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let live = LIVE.fetch_add(layout.size(), Ordering::SeqCst) + layout.size();
-        PEAK.fetch_max(live, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        LIVE.fetch_sub(layout.size(), Ordering::SeqCst);
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if new_size >= layout.size() {
-            let live = LIVE.fetch_add(new_size - layout.size(), Ordering::SeqCst)
-                + (new_size - layout.size());
-            PEAK.fetch_max(live, Ordering::SeqCst);
-        } else {
-            LIVE.fetch_sub(layout.size() - new_size, Ordering::SeqCst);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: deepfoids_testkit::Counting = deepfoids_testkit::Counting;
 
 /// The most memory in use at once while building the env, above what was in use before.
 fn measured(scene: &Scene) -> usize {
-    let before = LIVE.load(Ordering::SeqCst);
-    PEAK.store(before, Ordering::SeqCst);
-    let env = Env::new(scene.clone(), 1);
-    let peak = PEAK.load(Ordering::SeqCst) - before;
+    let (env, peak) = deepfoids_testkit::peak_during(|| Env::new(scene.clone(), 1));
     drop(env);
-    peak
+    peak as usize
 }
 
 /// The estimate is an upper bound; with fixed body scales (so the neighbour

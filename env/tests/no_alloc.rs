@@ -1,28 +1,9 @@
 //! `Env::step` allocates nothing: all buffers are made in `Env::new`.
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: deepfoids_testkit::Counting = deepfoids_testkit::Counting;
 
 /// Measured on a worker of a 2-thread pool: calls from outside a pool go
 /// through rayon's injector queue, which allocates a block per ~63 jobs (rayon's
@@ -51,9 +32,9 @@ fn run() {
         let mut during = 0;
         for _ in 0..30 {
             policy.act(&env, &mut actions).unwrap();
-            let before = ALLOCS.load(Ordering::SeqCst);
+            let before = deepfoids_testkit::allocations();
             env.step(&actions).unwrap();
-            during += ALLOCS.load(Ordering::SeqCst) - before;
+            during += deepfoids_testkit::allocations() - before;
         }
         assert_eq!(during, 0, "{id}: allocations during 30 steps");
     }

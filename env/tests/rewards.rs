@@ -48,20 +48,7 @@ fn neighbour_distance_term_capped_at_the_nearest() {
     for (cap, want) in [(0u32, 3.0f32), (2, 2.5), (1, 1.5), (8, 3.0)] {
         let mut sc = scene("seabream_default", 5);
         sc.rewards.neighbour_cap = cap;
-        let mut env = calm_env(sc);
-        let c = Vec3::new(-0.5, -1.5, -0.3);
-        place(&mut env, 0, c, Vec3::Z, 0.2);
-        // Out of order, so the cap must sort by distance.
-        for (k, (dx, deg)) in [(0.7f32, 60f32), (0.3, 0.0), (0.9, 90.0), (0.5, 30.0)]
-            .into_iter()
-            .enumerate()
-        {
-            let f = Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
-            place(&mut env, k + 1, c + Vec3::new(dx, 0.0, 0.0), f, 0.2);
-        }
-        env.observe_now();
-        env.step(&zeros(&env)).unwrap();
-        let t = terms(&env, 0);
+        let t = four_neighbours_terms(calm_env(sc));
         assert!(close(t[ND], want, 2e-3), "cap {cap}: {t:?}");
     }
 }

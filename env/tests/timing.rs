@@ -213,19 +213,7 @@ fn four_neighbours_nd(form: NeighbourForm) -> f32 {
     s.rewards.extensions.neighbour_form = form;
     s.rewards.contacts.kick = 0.0;
     s.rewards.contacts.push = 0.0;
-    let mut env = calm_env(s);
-    let c = Vec3::new(-0.5, -1.5, -0.3);
-    place(&mut env, 0, c, Vec3::Z, 0.2);
-    for (k, (dx, deg)) in [(0.7f32, 60f32), (0.3, 0.0), (0.9, 90.0), (0.5, 30.0)]
-        .into_iter()
-        .enumerate()
-    {
-        let f = Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
-        place(&mut env, k + 1, c + Vec3::new(dx, 0.0, 0.0), f, 0.2);
-    }
-    env.observe_now();
-    env.step(&zeros(&env)).unwrap();
-    terms(&env, 0)[ND]
+    four_neighbours_terms(calm_env(s))[ND]
 }
 
 /// The mean form: 1.5 · (1 + 2/3 + 1/3 + 0)/4 = 0.75; the sqrt form:

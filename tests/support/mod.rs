@@ -18,6 +18,19 @@ pub fn deepfoids(args: &[&str]) -> Output {
     command(args).output().expect("the binary runs")
 }
 
+/// The binary with the words of `line` (split at white space: an argument
+/// holding a space, such as a path under a folder with one, goes through
+/// [`command`]), run in the repository root.
+pub fn command_line(line: &str) -> Command {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    command(&words)
+}
+
+/// Run the binary with the words of `line` to its end (see [`command_line`]).
+pub fn cli(line: &str) -> Output {
+    command_line(line).output().expect("the binary runs")
+}
+
 /// Standard output, then standard error.
 pub fn text(o: &Output) -> String {
     format!(

@@ -3,6 +3,7 @@
 
 use deepfoids_env::config::Range;
 use deepfoids_env::{ConfigDirs, Env, Phase, Scene};
+pub use deepfoids_testkit::copy_dir;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -24,20 +25,6 @@ pub fn configs_with(name: &str, file: &str, edit: impl FnOnce(String) -> String)
     let text = std::fs::read_to_string(&path).unwrap();
     std::fs::write(&path, edit(text)).unwrap();
     root
-}
-
-/// Copy folder `from` into `to`, sub-folders (the reward profiles) included.
-pub fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let p = e.unwrap().path();
-        let dest = to.join(p.file_name().unwrap());
-        if p.is_dir() {
-            copy_dir(&p, &dest);
-        } else {
-            std::fs::copy(&p, dest).unwrap();
-        }
-    }
 }
 
 /// The error of loading `scene` from the configs at `root`.
@@ -114,4 +101,23 @@ pub const C: usize = 6;
 /// The reward terms of agent `i` of the first behaviour at the latest decision.
 pub fn terms(env: &Env, i: usize) -> [f32; 7] {
     env.output().behaviours[0].terms[i]
+}
+
+/// Fish 0 at (−0.5, −1.5, −0.3) heading +z, with four neighbours 0.7, 0.3,
+/// 0.9 and 0.5 m off along x, headed 60°, 0°, 90° and 30° away from it
+/// (r_ND's heading factors 1/3, 1, 0 and 2/3; out of order, so a cap must
+/// sort by distance); one step of `env`, and fish 0's reward terms.
+pub fn four_neighbours_terms(mut env: Env) -> [f32; 7] {
+    let c = Vec3::new(-0.5, -1.5, -0.3);
+    place(&mut env, 0, c, Vec3::Z, 0.2);
+    for (k, (dx, deg)) in [(0.7f32, 60f32), (0.3, 0.0), (0.9, 90.0), (0.5, 30.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let f = Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
+        place(&mut env, k + 1, c + Vec3::new(dx, 0.0, 0.0), f, 0.2);
+    }
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    terms(&env, 0)
 }
