@@ -112,137 +112,23 @@ fn a_scene_too_large_for_the_memory_is_refused_before_it_is_allocated() {
 fn command_line_sizes_and_durations_have_bounds() {
     let out = temp("flags");
     let out = out.to_str().unwrap();
-    let cases: &[(&[&str], &str)] = &[
-        (
-            &[
-                "simulate",
-                "--scene",
-                "seabream_default",
-                "--seconds",
-                "1e9",
-                "--out",
-                out,
-            ],
-            "--seconds 1e9 is above the limit of 86400 s (one simulated day)",
-        ),
-        (
-            &[
-                "eval",
-                "--scene",
-                "seabream_default",
-                "--seconds",
-                "1e15",
-                "--out",
-                out,
-            ],
-            "--seconds 1e15 is above the limit of 86400 s",
-        ),
-        (
-            &[
-                "eval",
-                "--scene",
-                "seabream_default",
-                "--replay",
-                "--replay-fps",
-                "1e6",
-                "--out",
-                out,
-            ],
-            "--replay-fps 1000000 is above the limit of 1000 frames/s",
-        ),
-        (
-            &["replay", "--scene", "seabream_default", "--seconds", "1e7"],
-            "--seconds 1e7 is above the limit of 86400 s",
-        ),
-        (
-            &["replay", "--scene", "seabream_default", "--fps", "1e6"],
-            "--fps 1000000 is above the limit of 1000 frames/s",
-        ),
-        (
-            &[
-                "compare",
-                "runs/a",
-                "runs/b",
-                "--seconds",
-                "1e9",
-                "--out",
-                out,
-            ],
-            "--seconds 1e9 is above the limit of 86400 s",
-        ),
-        (
-            &[
-                "compare", "runs/a", "runs/b", "--seeds", "1000000", "--out", out,
-            ],
-            "--seeds 1000000 is above the limit of 1000 seeds",
-        ),
-        (
-            &[
-                "sensor-view",
-                "--scene",
-                "seabream_default",
-                "--step",
-                "100000000000",
-            ],
-            "--step 100000000000 is above the limit of 1000000 ticks",
-        ),
-        (
-            &[
-                "render",
-                "--scene",
-                "seabream_default",
-                "--frames",
-                "10",
-                "--width",
-                "100000",
-                "--out",
-                out,
-            ],
-            "--width 100000 is above the limit of 8192 px",
-        ),
-        (
-            &[
-                "render",
-                "--scene",
-                "seabream_default",
-                "--frames",
-                "2000000",
-                "--out",
-                out,
-            ],
-            "--frames 2000000 is above the limit of 1000000 frames",
-        ),
-        (
-            &[
-                "render",
-                "--scene",
-                "seabream_default",
-                "--frames",
-                "10",
-                "--warmup",
-                "1e9",
-                "--out",
-                out,
-            ],
-            "--warmup 1e9 is above the limit of 86400 s",
-        ),
-        (
-            &[
-                "render",
-                "--scene",
-                "seabream_default",
-                "--frames",
-                "10",
-                "--fps",
-                "1e5",
-                "--out",
-                out,
-            ],
-            "--fps 100000 is above the limit of 1000 frames/s",
-        ),
+    #[rustfmt::skip]
+    let cases: &[(&str, &str)] = &[
+        ("simulate --scene seabream_default --seconds 1e9 --out {out}", "--seconds 1e9 is above the limit of 86400 s (one simulated day)"),
+        ("eval --scene seabream_default --seconds 1e15 --out {out}", "--seconds 1e15 is above the limit of 86400 s"),
+        ("eval --scene seabream_default --replay --replay-fps 1e6 --out {out}", "--replay-fps 1000000 is above the limit of 1000 frames/s"),
+        ("replay --scene seabream_default --seconds 1e7", "--seconds 1e7 is above the limit of 86400 s"),
+        ("replay --scene seabream_default --fps 1e6", "--fps 1000000 is above the limit of 1000 frames/s"),
+        ("compare runs/a runs/b --seconds 1e9 --out {out}", "--seconds 1e9 is above the limit of 86400 s"),
+        ("compare runs/a runs/b --seeds 1000000 --out {out}", "--seeds 1000000 is above the limit of 1000 seeds"),
+        ("sensor-view --scene seabream_default --step 100000000000", "--step 100000000000 is above the limit of 1000000 ticks"),
+        ("render --scene seabream_default --frames 10 --width 100000 --out {out}", "--width 100000 is above the limit of 8192 px"),
+        ("render --scene seabream_default --frames 2000000 --out {out}", "--frames 2000000 is above the limit of 1000000 frames"),
+        ("render --scene seabream_default --frames 10 --warmup 1e9 --out {out}", "--warmup 1e9 is above the limit of 86400 s"),
+        ("render --scene seabream_default --frames 10 --fps 1e5 --out {out}", "--fps 100000 is above the limit of 1000 frames/s"),
     ];
-    for (args, want) in cases {
-        assert_refused(&deepfoids(args), want);
+    for (line, want) in cases {
+        assert_refused(&cli(&line.replace("{out}", out)), want);
     }
     assert!(!Path::new(out).exists(), "nothing is written");
 }
@@ -652,66 +538,17 @@ fn names_in(dir: &Path) -> Vec<String> {
 fn negative_numbers_get_the_range_not_a_parse_error() {
     let out = temp("negative");
     let o = out.to_str().unwrap();
-    let cases: &[(&[&str], &str)] = &[
-        (
-            &[
-                "eval",
-                "--scene",
-                "seabream_default",
-                "--seconds",
-                "-1",
-                "--out",
-                o,
-            ],
-            "--seconds must be above 0 and at most 86400 s (one simulated day), got -1",
-        ),
-        (
-            &[
-                "eval",
-                "--scene",
-                "seabream_default",
-                "--warmup",
-                "-1",
-                "--out",
-                o,
-            ],
-            "--warmup must be ≥ 0 and at most 86400 s, got -1",
-        ),
-        (
-            &[
-                "eval",
-                "--scene",
-                "seabream_default",
-                "--seed",
-                "-1",
-                "--out",
-                o,
-            ],
-            "'--seed <SEED>': must be ≥ 0, got -1",
-        ),
-        (
-            &["train", "--scene", "seabream_default", "--steps", "-5"],
-            "'--steps <STEPS>': must be ≥ 0, got -5",
-        ),
-        (
-            &["replay", "--scene", "seabream_default", "--fps", "-2"],
-            "--fps must be above 0 and at most 1000 frames/s, got -2",
-        ),
-        (
-            &[
-                "render",
-                "--scene",
-                "seabream_default",
-                "--frames",
-                "-3",
-                "--out",
-                o,
-            ],
-            "'--frames <FRAMES>': must be ≥ 0, got -3",
-        ),
+    #[rustfmt::skip]
+    let cases: &[(&str, &str)] = &[
+        ("eval --scene seabream_default --seconds -1 --out {out}", "--seconds must be above 0 and at most 86400 s (one simulated day), got -1"),
+        ("eval --scene seabream_default --warmup -1 --out {out}", "--warmup must be ≥ 0 and at most 86400 s, got -1"),
+        ("eval --scene seabream_default --seed -1 --out {out}", "'--seed <SEED>': must be ≥ 0, got -1"),
+        ("train --scene seabream_default --steps -5", "'--steps <STEPS>': must be ≥ 0, got -5"),
+        ("replay --scene seabream_default --fps -2", "--fps must be above 0 and at most 1000 frames/s, got -2"),
+        ("render --scene seabream_default --frames -3 --out {out}", "'--frames <FRAMES>': must be ≥ 0, got -3"),
     ];
-    for (args, want) in cases {
-        let r = deepfoids(args);
+    for (line, want) in cases {
+        let r = cli(&line.replace("{out}", o));
         assert_refused(&r, want);
         assert!(!text(&r).contains("unexpected argument"), "{}", text(&r));
     }

@@ -1,6 +1,6 @@
 //! Bad configuration gets a clear error naming the file, the field and what is allowed.
 mod common;
-use common::{configs_with, dirs, load_err};
+use common::{assert_mentions, configs_with, dirs, edit_err, load_err};
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 
 #[test]
@@ -17,72 +17,31 @@ fn an_unknown_scene_lists_the_available_ones() {
 
 #[test]
 fn an_unknown_key_is_rejected_with_file_and_line() {
-    let root = configs_with("key", "scenes/seabream_default.toml", |t| {
-        t.replace("clock_runs = false", "clock_runs = false\nfish_count = 3")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("seabream_default.toml") && e.contains("fish_count"),
-        "{e}"
+    let e = edit_err(
+        "key",
+        "scenes/seabream_default.toml",
+        "clock_runs = false",
+        "clock_runs = false\nfish_count = 3",
+        "seabream_default",
     );
-    assert!(e.contains("line"), "{e}");
+    assert_mentions(&e, &["seabream_default.toml", "fish_count", "line"]);
 }
 
+/// Bad values in scene, species and site files: each refused naming the
+/// file, the field and what is allowed (or, for a name, the list of names).
 #[test]
-fn a_bad_species_value_names_the_field() {
-    let root = configs_with("species", "species/seabream.toml", |t| {
-        t.replace("sense_range_bl = 3.0", "sense_range_bl = -1.0")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("seabream.toml") && e.contains("sense_range_bl") && e.contains("positive"),
-        "{e}"
-    );
-}
-
-#[test]
-fn an_unknown_size_class_lists_the_allowed() {
-    let root = configs_with("class", "scenes/coho_small.toml", |t| {
-        t.replace("size_class = \"small\"", "size_class = \"tiny\"")
-    });
-    let e = load_err(&root, "coho_small");
-    assert!(
-        e.contains("group[0].size_class") && e.contains("large, regular, small"),
-        "{e}"
-    );
-}
-
-#[test]
-fn an_unknown_species_lists_the_available() {
-    let root = configs_with("sp", "scenes/seabream_default.toml", |t| {
-        t.replace("species = \"seabream\"", "species = \"tuna\"")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("unknown species `tuna`") && e.contains("coho, seabream, yellowtail"),
-        "{e}"
-    );
-}
-
-#[test]
-fn a_cage_too_small_for_its_fish_is_rejected() {
-    let root = configs_with("cage", "scenes/coho_large.toml", |t| {
-        t.replace("edge = 3.0\nheight = 4.6", "edge = 0.5\nheight = 0.6")
-    });
-    let e = load_err(&root, "coho_large");
-    assert!(e.contains("field `cage`") && e.contains("too small"), "{e}");
-}
-
-#[test]
-fn a_bad_date_names_the_field() {
-    let root = configs_with("date", "scenes/seabream_default.toml", |t| {
-        t.replace("2021-11-15", "2021-13-01")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("field `date`") && e.contains("YYYY-MM-DD"),
-        "{e}"
-    );
+fn bad_values_are_refused_by_file_and_field() {
+    #[rustfmt::skip]
+    let cases: [(&str, &str, &str, &str, &str, &[&str]); 5] = [
+        ("species", "species/seabream.toml", "sense_range_bl = 3.0", "sense_range_bl = -1.0", "seabream_default", &["seabream.toml", "sense_range_bl", "positive"]),
+        ("class", "scenes/coho_small.toml", "size_class = \"small\"", "size_class = \"tiny\"", "coho_small", &["group[0].size_class", "large, regular, small"]),
+        ("sp", "scenes/seabream_default.toml", "species = \"seabream\"", "species = \"tuna\"", "seabream_default", &["unknown species `tuna`", "coho, seabream, yellowtail"]),
+        ("cage", "scenes/coho_large.toml", "edge = 3.0\nheight = 4.6", "edge = 0.5\nheight = 0.6", "coho_large", &["field `cage`", "too small"]),
+        ("date", "scenes/seabream_default.toml", "2021-11-15", "2021-13-01", "seabream_default", &["field `date`", "YYYY-MM-DD"]),
+    ];
+    for (tag, file, from, to, scene, says) in cases {
+        assert_mentions(&edit_err(tag, file, from, to, scene), says);
+    }
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! bound, named with the file, field, value and bound; a value a scene
 //! overrides is blamed on the scene file.
 mod common;
-use common::{configs_with, load_err};
+use common::{assert_mentions, configs_with, edit_err, load_err};
 use deepfoids_env::baselines::{BoidsConfig, FoidsConfig};
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 
@@ -113,53 +113,18 @@ fn obstacles_are_bounded_in_number_and_size() {
 
 #[test]
 fn species_site_and_reward_values_have_bounds() {
-    let root = configs_with("bl", "species/seabream.toml", |t| {
-        t.replace("body_length = 0.34", "body_length = 1e30")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.ends_with("species/seabream.toml: body_length = 1e30 is above the limit of 10 m"),
-        "{e}"
-    );
-    let root = configs_with("steep", "species/seabream.toml", |t| {
-        t.replace("body_length", "light_steep = [nan, 1000.0]\nbody_length")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(e.contains("light_steep[0]") && e.contains("finite"), "{e}");
-    let root = configs_with("temp", "sites/nishiki.toml", |t| {
-        t.replace("surface_temperature = 22.0", "surface_temperature = nan")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("sites/nishiki.toml")
-            && e.contains("surface_temperature")
-            && e.contains("finite"),
-        "{e}"
-    );
-    let root = configs_with("light", "sites/nishiki.toml", |t| {
-        t.replace("surface_light_max = 15.13", "surface_light_max = inf")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("surface_light_max") && e.contains("finite"),
-        "{e}"
-    );
-    let root = configs_with("reward", "rewards/thesis/pretrain.toml", |t| {
-        t.replace("w_nc = 0.5", "w_nc = nan")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("rewards/thesis/pretrain.toml") && e.contains("w_nc") && e.contains("finite"),
-        "{e}"
-    );
-    let root = configs_with("reward-big", "rewards/thesis/pretrain.toml", |t| {
-        t.replace("catch_bonus = 100.0", "catch_bonus = 1e12")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(
-        e.contains("catch_bonus = 1e12 is above the limit of 10000"),
-        "{e}"
-    );
+    #[rustfmt::skip]
+    let cases: [(&str, &str, &str, &str, &[&str]); 6] = [
+        ("bl", "species/seabream.toml", "body_length = 0.34", "body_length = 1e30", &["species/seabream.toml: body_length = 1e30 is above the limit of 10 m"]),
+        ("steep", "species/seabream.toml", "body_length", "light_steep = [nan, 1000.0]\nbody_length", &["light_steep[0]", "finite"]),
+        ("temp", "sites/nishiki.toml", "surface_temperature = 22.0", "surface_temperature = nan", &["sites/nishiki.toml", "surface_temperature", "finite"]),
+        ("light", "sites/nishiki.toml", "surface_light_max = 15.13", "surface_light_max = inf", &["surface_light_max", "finite"]),
+        ("reward", "rewards/thesis/pretrain.toml", "w_nc = 0.5", "w_nc = nan", &["rewards/thesis/pretrain.toml", "w_nc", "finite"]),
+        ("reward-big", "rewards/thesis/pretrain.toml", "catch_bonus = 100.0", "catch_bonus = 1e12", &["catch_bonus = 1e12 is above the limit of 10000"]),
+    ];
+    for (tag, file, from, to, says) in cases {
+        assert_mentions(&edit_err(tag, file, from, to, "seabream_default"), says);
+    }
 }
 
 #[test]
@@ -267,11 +232,14 @@ fn a_bad_site_override_names_the_scene_file() {
         "{e}"
     );
     // An error of the site file itself still names the site file.
-    let root = configs_with("site-own", "sites/nishiki.toml", |t| {
-        t.replace("attenuation = 0.26", "attenuation = -1.0")
-    });
-    let e = load_err(&root, "seabream_default");
-    assert!(e.contains("sites/nishiki.toml: field `attenuation`"), "{e}");
+    let e = edit_err(
+        "site-own",
+        "sites/nishiki.toml",
+        "attenuation = 0.26",
+        "attenuation = -1.0",
+        "seabream_default",
+    );
+    assert_mentions(&e, &["sites/nishiki.toml: field `attenuation`"]);
 }
 
 #[test]

@@ -43,6 +43,24 @@ pub fn scene(id: &str, n: usize) -> Scene {
     s
 }
 
+/// The error loading `scene` from a copy of the configs (named `tag`) whose
+/// `file` has `from` replaced by `to` (`from` must be in the file).
+pub fn edit_err(tag: &str, file: &str, from: &str, to: &str, scene: &str) -> String {
+    let root = configs_with(tag, file, |t| {
+        assert!(t.contains(from), "`{from}` is not in {file}");
+        t.replace(from, to)
+    });
+    load_err(&root, scene)
+}
+
+/// `e` mentions every one of `parts`.
+#[track_caller]
+pub fn assert_mentions(e: &str, parts: &[&str]) {
+    for part in parts {
+        assert!(e.contains(part), "`{part}` is not in: {e}");
+    }
+}
+
 /// An env of `scene` with light preferences wide enough that light never pushes,
 /// no dominant fish, and chases never starting unless the test says so.
 pub fn calm_env(mut scene: Scene) -> Env {
