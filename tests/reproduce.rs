@@ -6,7 +6,7 @@ mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
-use support::{command, temp_path, text};
+use support::{cli, command, temp_path, text};
 
 /// The binary, with the shipped policies looked for in `policies` if given.
 fn deepfoids(args: &[&str], policies: Option<&Path>) -> Output {
@@ -242,4 +242,40 @@ fn an_unknown_claim_is_refused_with_the_list() {
     assert!(t.contains("unknown claim `fly`"), "{t}");
     assert!(t.contains("learn, transfer, circle, seabream-cage, seabream-50, layers, species, density, chase, ppo-sac, boids"), "{t}");
     assert!(!out.exists(), "nothing written for a refused command");
+}
+
+/// What a cluster driver (`deepfoids.ray`) schedules: `--plan` lists each
+/// (seed, stage) with the stages it starts from and writes nothing; `--stage`
+/// trains one stage, refusing a stage the claims do not train and one whose
+/// pretraining has not finished — before any folder appears.
+#[test]
+fn the_plan_and_single_stages_for_a_cluster_driver() {
+    let out = temp("plan");
+    let o = out.to_str().unwrap();
+    let base = format!("reproduce --profile quick --only seabream-cage --out {o}");
+    let p = cli(&format!("{base} --plan --seeds 7"));
+    assert!(p.status.success(), "{}", text(&p));
+    let plan = String::from_utf8_lossy(&p.stdout).to_string();
+    let lines: Vec<&str> = plan.lines().collect();
+    assert_eq!(lines.len(), 3, "{plan}");
+    assert_eq!(
+        lines[2],
+        r#"{"algo":"ppo","init_from":["pretrain-seabream"],"phase":"transfer","scene":"seabream_cube5","seed":7,"stage":"transfer-seabream_cube5"}"#
+    );
+    let e = cli(&format!("{base} --stage transfer-density_dense"));
+    assert!(!e.status.success());
+    assert!(
+        text(&e).contains(
+            "--stage transfer-density_dense is not a stage of these claims; they train: pretrain-seabream, transfer-seabream_default, transfer-seabream_cube5"
+        ),
+        "{}",
+        text(&e)
+    );
+    let e = cli(&format!("{base} --stage transfer-seabream_cube5"));
+    assert!(
+        !e.status.success() && text(&e).contains("which has no final policy"),
+        "{}",
+        text(&e)
+    );
+    assert!(!out.join("s0").join("transfer-seabream_cube5").exists());
 }

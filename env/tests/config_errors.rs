@@ -27,12 +27,23 @@ fn an_unknown_key_is_rejected_with_file_and_line() {
     assert_mentions(&e, &["seabream_default.toml", "fish_count", "line"]);
 }
 
+/// A file edit (`tag`, `file`, `from`, `to`), the scene loaded, and what
+/// its error must mention.
+type Case = (
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static [&'static str],
+);
+
 /// Bad values in scene, species and site files: each refused naming the
 /// file, the field and what is allowed (or, for a name, the list of names).
 #[test]
 fn bad_values_are_refused_by_file_and_field() {
     #[rustfmt::skip]
-    let cases: [(&str, &str, &str, &str, &str, &[&str]); 5] = [
+    let cases: [Case; 5] = [
         ("species", "species/seabream.toml", "sense_range_bl = 3.0", "sense_range_bl = -1.0", "seabream_default", &["seabream.toml", "sense_range_bl", "positive"]),
         ("class", "scenes/coho_small.toml", "size_class = \"small\"", "size_class = \"tiny\"", "coho_small", &["group[0].size_class", "large, regular, small"]),
         ("sp", "scenes/seabream_default.toml", "species = \"seabream\"", "species = \"tuna\"", "seabream_default", &["unknown species `tuna`", "coho, seabream, yellowtail"]),

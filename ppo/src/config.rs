@@ -219,6 +219,9 @@ impl PpoConfig {
 mod tests {
     use super::*;
 
+    /// An edit of the defaults, and the error it must give.
+    type Case = (fn(&mut PpoConfig), &'static str);
+
     #[test]
     fn the_shipped_file_holds_table_4_4() {
         let dirs = ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
@@ -234,7 +237,7 @@ mod tests {
     fn each_bad_value_names_its_own_field_and_range() {
         let path = std::path::Path::new("configs/train/ppo.toml");
         #[rustfmt::skip]
-        let cases: [(fn(&mut PpoConfig), &str); 8] = [
+        let cases: [Case; 8] = [
             (|c| c.time_horizon = 0, "field `time_horizon`: must be at least 1, got 0"),
             (|c| c.epochs = 0, "field `epochs`: must be at least 1, got 0"),
             (|c| c.hidden = 0, "field `hidden`: must be at least 1, got 0"),

@@ -221,6 +221,9 @@ impl SacConfig {
 mod tests {
     use super::*;
 
+    /// An edit of the defaults, and the error it must give.
+    type Case = (fn(&mut SacConfig), &'static str);
+
     #[test]
     fn the_shipped_file_holds_table_4_5() {
         let dirs = ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
@@ -246,7 +249,7 @@ mod tests {
     fn each_grouped_field_is_named_by_itself() {
         let path = std::path::Path::new("sac.toml");
         #[rustfmt::skip]
-        let cases: [(fn(&mut SacConfig), &str); 4] = [
+        let cases: [Case; 4] = [
             (|c| c.layers = 0, "field `layers`: must be at least 1, got 0"),
             (|c| c.summary_every = 0, "field `summary_every`: must be at least 1, got 0"),
             (|c| c.batch_size = 0, "field `batch_size`: must be at least 1, got 0"),

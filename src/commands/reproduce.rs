@@ -5,7 +5,7 @@ use anyhow::Result;
 use clap::Args;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use deepfoids_env::ConfigDirs;
-use deepfoids_experiments::reproduce::{ProfileName, ReproduceOptions};
+use deepfoids_experiments::reproduce::{Mode, ProfileName, ReproduceOptions};
 use std::path::PathBuf;
 
 #[derive(Args, Debug, Clone)]
@@ -40,6 +40,15 @@ pub struct ReproduceArgs {
     /// Evaluate with the policies' means instead of sampled actions (the default, as Unity's inference did)
     #[arg(long)]
     pub deterministic: bool,
+    /// Print the stages these options train, one JSON line each (seed, stage,
+    /// the stages it starts from), and stop: what a cluster driver schedules
+    /// (`deepfoids.ray`, docs/training.md)
+    #[arg(long, conflicts_with_all = ["stage", "ship"])]
+    pub plan: bool,
+    /// Train only this stage (for each seed), into the same layout, and stop;
+    /// the stages it starts from must be finished. Several may run at once
+    #[arg(long, value_name = "NAME", conflicts_with = "ship")]
+    pub stage: Option<String>,
 }
 
 /// `--profile`: full or quick, listed in `--help` and in the error.
@@ -61,6 +70,11 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
             ship: args.ship.clone(),
             quiet: args.quiet,
             deterministic: args.deterministic,
+            mode: match (&args.stage, args.plan) {
+                (Some(name), _) => Mode::Stage(name.clone()),
+                (None, true) => Mode::Plan,
+                (None, false) => Mode::All,
+            },
         },
     )
 }

@@ -54,6 +54,26 @@ pub struct ReproduceOptions {
     pub quiet: bool,
     /// Evaluate with the policies' means instead of sampled actions (SPEC §9).
     pub deterministic: bool,
+    /// Everything, or one part of it for a cluster driver (`deepfoids.ray`).
+    pub mode: Mode,
+}
+
+/// What [`run`] does. A cluster driver asks for the [`Mode::Plan`], trains
+/// each (seed, stage) with [`Mode::Stage`] once the stages it starts from are
+/// finished, then runs [`Mode::All`], which reuses every finished stage and
+/// measures, judges and writes the report.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum Mode {
+    #[default]
+    All,
+    /// Print the stages to train, one JSON object a line: `seed`, `stage`,
+    /// `init_from` (stages of the same seed it starts from), `scene`,
+    /// `phase`, `algo`; nothing is written.
+    Plan,
+    /// Train this one stage for each seed (the stages it starts from must be
+    /// finished), without the folder-wide lock: stages of one reproduction
+    /// may train in several processes at once.
+    Stage(String),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -310,6 +330,31 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
         needs.extend(claims::select(&["circle".to_string()])?);
     }
     let stages = stages_for(&needs);
+    match &args.mode {
+        Mode::All => {}
+        Mode::Plan => {
+            for &seed in &profile.seeds {
+                for stage in &stages {
+                    println!("{}", plan_line(seed, stage));
+                }
+            }
+            return Ok(());
+        }
+        Mode::Stage(name) => {
+            let Some(stage) = stages.iter().find(|s| &s.name == name) else {
+                let names: Vec<&str> = stages.iter().map(|s| s.name.as_str()).collect();
+                bail!(
+                    "--stage {name} is not a stage of these claims; they train: {}",
+                    names.join(", ")
+                );
+            };
+            for &seed in &profile.seeds {
+                let root = args.out.join(format!("s{seed}"));
+                run_stage(dirs, &profile, stage, &root, seed, args)?;
+            }
+            return Ok(());
+        }
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let _lock = crate::lock_dir(&args.out)?;
@@ -368,6 +413,19 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
         ship::ship(dirs, &profile, &args.out, dest)?;
     }
     Ok(())
+}
+
+/// One line of the [`Mode::Plan`].
+fn plan_line(seed: u64, stage: &Stage) -> String {
+    serde_json::json!({
+        "seed": seed,
+        "stage": stage.name,
+        "init_from": stage.init_from,
+        "scene": stage.scene,
+        "phase": stage.phase.as_str(),
+        "algo": stage.algo.as_str(),
+    })
+    .to_string()
 }
 
 /// Reuse a finished stage, resume an interrupted one, or train it.
