@@ -19,7 +19,7 @@
 
 use crate::boxes::Detection;
 use crate::error::{CountError, Result};
-use deepfoids_onnx::runtime::why_not_onnx;
+use deepfoids_onnx::runtime::{read_metadata, why_not_onnx};
 use image::RgbImage;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -287,19 +287,6 @@ pub fn decode_yolov8(out: &[f32], channels: usize, anchors: usize, conf: f32) ->
                 .then(|| Detection::from_centre(at(0, a), at(1, a), at(2, a), at(3, a), score))
         })
         .collect()
-}
-
-/// `metadata_props` of a ModelProto (tract's message types).
-fn read_metadata(bytes: &[u8]) -> HashMap<String, String> {
-    use prost::Message;
-    tract_onnx::pb::ModelProto::decode(bytes)
-        .map(|m| {
-            m.metadata_props
-                .into_iter()
-                .map(|p| (p.key, p.value))
-                .collect()
-        })
-        .unwrap_or_default()
 }
 
 #[cfg(test)]

@@ -54,13 +54,7 @@ fn chasing(target_at: Vec3) -> deepfoids_env::Env {
     let mut env = calm_env(scene("seabream_default", 2));
     place(&mut env, 0, Vec3::new(0.0, -1.5, 0.0), Vec3::Z, 0.0);
     place(&mut env, 1, target_at, Vec3::Z, 0.0);
-    let w = env.world_mut();
-    w.dominant[0] = true;
-    w.chase[0] = Chase::Aggressor {
-        target: 1,
-        since: 0.0,
-    };
-    w.chase[1] = Chase::Target { aggressor: 0 };
+    start_chase(&mut env);
     env.observe_now();
     env
 }

@@ -57,11 +57,7 @@ fn neighbour_distance_term_capped_at_the_nearest() {
 /// r_BD = −2 · (1.02 − 0.5)/1.02 = −1.019608.
 #[test]
 fn boundary_distance_term() {
-    let mut env = calm_env(scene("seabream_default", 1));
-    place(&mut env, 0, Vec3::new(1.0, -1.5, 0.0), Vec3::Z, 0.2);
-    env.observe_now();
-    env.step(&zeros(&env)).unwrap();
-    let t = terms(&env, 0);
+    let t = lone_fish_terms(scene("seabream_default", 1), Vec3::new(1.0, -1.5, 0.0), 0.2);
     assert!(close(t[BD], -1.019608, 1e-4), "{t:?}");
     assert_eq!(t[BC], 0.0);
 }
@@ -145,13 +141,7 @@ fn chase_terms() {
     let mut env = calm_env(scene("seabream_default", 2));
     place(&mut env, 0, Vec3::new(0.0, -1.5, -0.4), Vec3::Z, 0.2);
     place(&mut env, 1, Vec3::new(0.0, -1.5, 0.4), Vec3::Z, 0.2);
-    let w = env.world_mut();
-    w.dominant[0] = true;
-    w.chase[0] = Chase::Aggressor {
-        target: 1,
-        since: 0.0,
-    };
-    w.chase[1] = Chase::Target { aggressor: 0 };
+    start_chase(&mut env);
     env.observe_now();
     let t = env.step(&zeros(&env)).unwrap().behaviours[0].terms.clone();
     assert!(close(t[0][C], 1.6, 1e-4), "{:?}", t[0]);

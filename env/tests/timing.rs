@@ -62,11 +62,7 @@ fn a_full_action_changes_speed_and_heading_per_step() {
 /// +10. No turn, no speed change: r_E = 0.
 #[test]
 fn a_fish_near_a_wall_for_k_steps_pays_k_times_the_per_step_penalty() {
-    let mut env = calm_env(scene("seabream_default", 1));
-    place(&mut env, 0, Vec3::new(1.0, -1.5, 0.0), Vec3::Z, 0.5);
-    env.observe_now();
-    env.step(&zeros(&env)).unwrap();
-    let t = terms(&env, 0);
+    let t = lone_fish_terms(scene("seabream_default", 1), Vec3::new(1.0, -1.5, 0.0), 0.5);
     assert!(close(t[BD], 5.0 * -1.019608, 1e-4), "{t:?}");
     assert_eq!(t[M], 10.0);
     assert!(close(t[E], 0.0, 1e-6), "{t:?}");
@@ -74,11 +70,7 @@ fn a_fish_near_a_wall_for_k_steps_pays_k_times_the_per_step_penalty() {
     // The earlier reading pays the decision's state once: −1.019608 and +2.
     let mut s = scene("seabream_default", 1);
     s.rewards.timing.rewards = RewardTiming::PerDecision;
-    let mut env = calm_env(s);
-    place(&mut env, 0, Vec3::new(1.0, -1.5, 0.0), Vec3::Z, 0.5);
-    env.observe_now();
-    env.step(&zeros(&env)).unwrap();
-    let t = terms(&env, 0);
+    let t = lone_fish_terms(s, Vec3::new(1.0, -1.5, 0.0), 0.5);
     assert!(close(t[BD], -1.019608, 1e-4), "{t:?}");
     assert_eq!(t[M], 2.0);
 }

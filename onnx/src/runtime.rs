@@ -155,7 +155,7 @@ impl OnnxPolicy {
 
 /// `metadata_props` of a ModelProto, decoded with tract's message types (so
 /// the runtime needs no exporter).
-fn read_metadata(bytes: &[u8]) -> HashMap<String, String> {
+pub fn read_metadata(bytes: &[u8]) -> HashMap<String, String> {
     use prost::Message;
     tract_onnx::pb::ModelProto::decode(bytes)
         .map(|m| {

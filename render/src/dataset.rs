@@ -57,6 +57,15 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> DatasetError + '_ {
     }
 }
 
+/// A frame's JSON file, parsed.
+fn read_json(path: &Path) -> Result<Value, DatasetError> {
+    let bytes = std::fs::read(path).map_err(io(path))?;
+    serde_json::from_slice(&bytes).map_err(|e| DatasetError::Invalid {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
 /// Image file format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -202,13 +211,7 @@ impl Dataset {
     /// Frame `i`'s visible-fish count and its clip's water attempt, from its JSON.
     pub fn frame_meta(&self, i: usize) -> Result<(usize, u32), DatasetError> {
         let p = self.frame_json_path(i);
-        let v: Value =
-            serde_json::from_slice(&std::fs::read(&p).map_err(io(&p))?).map_err(|e| {
-                DatasetError::Invalid {
-                    path: p.clone(),
-                    message: e.to_string(),
-                }
-            })?;
+        let v = read_json(&p)?;
         Ok((
             v["visible_fish"].as_u64().unwrap_or(0) as usize,
             v["meta"]["water_attempt"].as_u64().unwrap_or(0) as u32,
@@ -332,13 +335,7 @@ impl Dataset {
         let mut counts = String::from("frame,clip,split,visible_fish,in_view_fish\n");
         for i in 0..n {
             let p = self.frame_json_path(i);
-            let v: Value =
-                serde_json::from_slice(&std::fs::read(&p).map_err(io(&p))?).map_err(|e| {
-                    DatasetError::Invalid {
-                        path: p.clone(),
-                        message: e.to_string(),
-                    }
-                })?;
+            let v = read_json(&p)?;
             let split = v["meta"]["split"].as_str().unwrap_or("train").to_string();
             counts.push_str(&format!(
                 "{i},{},{split},{},{}\n",

@@ -139,3 +139,25 @@ pub fn four_neighbours_terms(mut env: Env) -> [f32; 7] {
     env.step(&zeros(&env)).unwrap();
     terms(&env, 0)
 }
+
+/// Fish 0, dominant, chases fish 1 (a running chase started now).
+pub fn start_chase(env: &mut Env) {
+    use deepfoids_env::Chase;
+    let w = env.world_mut();
+    w.dominant[0] = true;
+    w.chase[0] = Chase::Aggressor {
+        target: 1,
+        since: 0.0,
+    };
+    w.chase[1] = Chase::Target { aggressor: 0 };
+}
+
+/// One fish of `scene` at `p`, heading +z at `bl_per_s`, alone and calm: its
+/// reward terms after one step.
+pub fn lone_fish_terms(scene: Scene, p: Vec3, bl_per_s: f32) -> [f32; 7] {
+    let mut env = calm_env(scene);
+    place(&mut env, 0, p, Vec3::Z, bl_per_s);
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    terms(&env, 0)
+}
