@@ -10,12 +10,10 @@ use std::path::PathBuf;
 
 #[derive(Args, Debug, Clone)]
 pub struct ReproduceArgs {
-    /// Budgets: `full` (the thesis': coho 4 M + 1 M, yellowtail and seabream
-    /// 2 M + 2 M, SAC on coho 4 M + 1 M) or `quick` (a tenth of them)
+    /// Budgets: `full` (the thesis': coho 4 M + 1 M, yellowtail and seabream 2 M + 2 M, SAC on coho 4 M + 1 M) or `quick` (a tenth of them)
     #[arg(long, default_value = "full", value_parser = profile())]
     pub profile: ProfileName,
-    /// Only these claims (comma-separated), and the stages they need
-    /// [default: every claim]; see the README for the list
+    /// Only these claims (comma-separated), and the stages they need [default: every claim]; see the README for the list
     #[arg(long, value_delimiter = ',', value_name = "CLAIM")]
     pub only: Vec<String>,
     /// Output folder: the runs (s<seed>/<stage>) and report/
@@ -30,8 +28,7 @@ pub struct ReproduceArgs {
     /// Scale the evaluation's simulated seconds by this factor (tests)
     #[arg(long, default_value_t = 1.0, hide = true)]
     pub eval_scale: f64,
-    /// After the report, copy each species' transferred default policy with a
-    /// model card into this folder (`policies` ships them with the repository)
+    /// After the report, copy each species' transferred default policy with a model card into this folder (`policies` ships them with the repository)
     #[arg(long, value_name = "DIR")]
     pub ship: Option<PathBuf>,
     /// No progress bars or progress lines while training
@@ -40,13 +37,10 @@ pub struct ReproduceArgs {
     /// Evaluate with the policies' means instead of sampled actions (the default, as Unity's inference did)
     #[arg(long)]
     pub deterministic: bool,
-    /// Print the stages these options train, one JSON line each (seed, stage,
-    /// the stages it starts from), and stop: what a cluster driver schedules
-    /// (`deepfoids.ray`, docs/training.md)
+    /// Print the stages to train as JSON lines (seed, stage, the stages it starts from) and stop: what `deepfoids.ray` schedules
     #[arg(long, conflicts_with_all = ["stage", "ship"])]
     pub plan: bool,
-    /// Train only this stage (for each seed), into the same layout, and stop;
-    /// the stages it starts from must be finished. Several may run at once
+    /// Train only this stage (each seed) once the stages it starts from are finished, and stop; several may run at once
     #[arg(long, value_name = "NAME", conflicts_with = "ship")]
     pub stage: Option<String>,
 }
@@ -70,11 +64,10 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
             ship: args.ship.clone(),
             quiet: args.quiet,
             deterministic: args.deterministic,
-            mode: match (&args.stage, args.plan) {
-                (Some(name), _) => Mode::Stage(name.clone()),
-                (None, true) => Mode::Plan,
-                (None, false) => Mode::All,
-            },
+            mode: args
+                .stage
+                .clone()
+                .map_or(if args.plan { Mode::Plan } else { Mode::All }, Mode::Stage),
         },
     )
 }
