@@ -114,11 +114,7 @@ fn a_contact_that_lasts_pays_once() {
         s.rewards.contacts.kick = 0.0;
         s.rewards.contacts.push = 0.0;
         s.physics.repulsion = 0.0;
-        let mut env = calm_env(s);
-        let c = Vec3::new(0.0, -1.5, -1.0);
-        place(&mut env, 0, c, Vec3::Z, 0.5);
-        place(&mut env, 1, c + Vec3::new(0.03, 0.0, 0.0), Vec3::Z, 0.5);
-        env.observe_now();
+        let mut env = touching_pair(s);
         for (d, w) in want.iter().enumerate() {
             env.step(&zeros(&env)).unwrap();
             for i in 0..2 {
@@ -136,11 +132,7 @@ fn a_contact_that_lasts_pays_once() {
 fn a_contact_start_kicks_both_fish_apart() {
     let mut s = scene("seabream_default", 2);
     s.physics.repulsion = 0.0;
-    let mut env = calm_env(s);
-    let c = Vec3::new(0.0, -1.5, -1.0);
-    place(&mut env, 0, c, Vec3::Z, 0.5);
-    place(&mut env, 1, c + Vec3::new(0.03, 0.0, 0.0), Vec3::Z, 0.5);
-    env.observe_now();
+    let mut env = touching_pair(s);
     env.step(&zeros(&env)).unwrap();
     let h = env.world().heading.clone();
     assert!(close(h[0].x, -0.178834, 2e-3), "{}", h[0]);

@@ -40,6 +40,24 @@ pub const MAX_BUFFER: u64 = 100_000_000;
 /// Most checkpoints kept.
 pub const MAX_KEEP_CHECKPOINTS: u64 = 1_000;
 
+/// `<configs>/train/<file>`: where a trainer's config file lives.
+pub fn train_config_path(dirs: &deepfoids_env::ConfigDirs, file: &str) -> std::path::PathBuf {
+    dirs.root.join("train").join(file)
+}
+
+/// `<configs>/train/<file>`, read, then checked by `check` (its fields' own
+/// ranges, then the sizes' bounds).
+pub fn load_train_config<C: serde::de::DeserializeOwned>(
+    dirs: &deepfoids_env::ConfigDirs,
+    file: &str,
+    check: impl Fn(&C, &Path) -> Result<(), ConfigError>,
+) -> Result<C, ConfigError> {
+    let path = train_config_path(dirs, file);
+    let cfg: C = deepfoids_env::config::read_toml(&path)?;
+    check(&cfg, &path)?;
+    Ok(cfg)
+}
+
 /// `field = value` of the training config `path` must lie in `lo..=hi`;
 /// `usual` says what the tables use (e.g. "Table 4.4: 64").
 pub fn check_size(

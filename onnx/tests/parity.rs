@@ -58,6 +58,14 @@ fn uniform(lim: f64, dev: &Device) -> burn::module::Param<Tensor<2>> {
     ))
 }
 
+/// The largest |a − b| over two action vectors.
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max)
+}
+
 /// The metadata of a seabream test policy trained by `algorithm`.
 fn seabream_meta(algorithm: &str, training_step: u64) -> Metadata {
     Metadata {
@@ -115,19 +123,11 @@ fn tract_matches_the_burn_actor() {
         );
         // Batch 64 at once.
         let got = policy.run(&grids, &vectors, n).unwrap();
-        let worst = got
-            .iter()
-            .zip(&expected)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let worst = max_abs_diff(&got, &expected);
         eprintln!("tract vs Burn (kernels: {kernels}): max abs difference {worst:.2e} at batch 64");
         // The fused forward (acting) gives the same actions.
         let fused = actor.deterministic(&grids, &vectors);
-        let worst_fused = fused
-            .iter()
-            .zip(&expected)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let worst_fused = max_abs_diff(&fused, &expected);
         assert!(
             worst_fused <= 1e-4,
             "fused forward: max abs difference {worst_fused}"
@@ -207,11 +207,7 @@ fn tract_matches_the_sac_actor() {
     let expected: Vec<f32> = mean.tanh().into_data().try_into_vec::<f32>().unwrap();
     // The fused forward (acting) gives the same actions.
     let fused = deepfoids_sac::SacActor::new(actor.clone()).deterministic(&grids, &vectors);
-    let worst_fused = fused
-        .iter()
-        .zip(&expected)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max);
+    let worst_fused = max_abs_diff(&fused, &expected);
     assert!(
         worst_fused <= 1e-4,
         "fused forward: max abs difference {worst_fused}"
@@ -225,11 +221,7 @@ fn tract_matches_the_sac_actor() {
         .unwrap()
         .run(&grids, &vectors, n)
         .unwrap();
-    let worst = got
-        .iter()
-        .zip(&expected)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max);
+    let worst = max_abs_diff(&got, &expected);
     assert!(worst <= 1e-4, "max abs difference {worst}");
     let sampled = OnnxPolicy::load(&path, true)
         .unwrap()

@@ -2,7 +2,7 @@
 //! `configs/train/ppo.toml`. A plain serde struct: unknown keys are rejected
 //! and missing keys take the documented defaults.
 
-use deepfoids_env::config::{ConfigError, read_toml};
+use deepfoids_env::config::ConfigError;
 use deepfoids_env::{ConfigDirs, Phase};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -124,18 +124,15 @@ impl Default for PpoConfig {
 }
 
 impl PpoConfig {
-    /// `train/ppo.toml` under the config root.
     /// `<configs>/train/ppo.toml`.
     pub fn path(dirs: &ConfigDirs) -> std::path::PathBuf {
-        dirs.root.join("train").join("ppo.toml")
+        deepfoids_learn::plan::train_config_path(dirs, "ppo.toml")
     }
 
+    /// `<configs>/train/ppo.toml`, read and checked.
     pub fn load(dirs: &ConfigDirs) -> Result<Self, ConfigError> {
-        let path = Self::path(dirs);
-        let cfg: PpoConfig = read_toml(&path)?;
-        cfg.validate(&path)?;
-        cfg.check_sizes(&path)?;
-        Ok(cfg)
+        let check = |c: &Self, p: &std::path::Path| c.validate(p).and_then(|_| c.check_sizes(p));
+        deepfoids_learn::plan::load_train_config(dirs, "ppo.toml", check)
     }
 
     /// The sizes' hard bounds ([`deepfoids_learn::plan`]); the memory they

@@ -2,7 +2,7 @@
 //! `configs/train/sac.toml`. A plain serde struct: unknown keys are rejected
 //! and missing keys take the documented defaults.
 
-use deepfoids_env::config::{ConfigError, read_toml};
+use deepfoids_env::config::ConfigError;
 use deepfoids_env::{ConfigDirs, Phase};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -97,18 +97,15 @@ fn phase_index(phase: Phase) -> usize {
 }
 
 impl SacConfig {
-    /// `train/sac.toml` under the config root.
     /// `<configs>/train/sac.toml`.
     pub fn path(dirs: &ConfigDirs) -> std::path::PathBuf {
-        dirs.root.join("train").join("sac.toml")
+        deepfoids_learn::plan::train_config_path(dirs, "sac.toml")
     }
 
+    /// `<configs>/train/sac.toml`, read and checked.
     pub fn load(dirs: &ConfigDirs) -> Result<Self, ConfigError> {
-        let path = Self::path(dirs);
-        let cfg: SacConfig = read_toml(&path)?;
-        cfg.validate(&path)?;
-        cfg.check_sizes(&path)?;
-        Ok(cfg)
+        let check = |c: &Self, p: &std::path::Path| c.validate(p).and_then(|_| c.check_sizes(p));
+        deepfoids_learn::plan::load_train_config(dirs, "sac.toml", check)
     }
 
     /// The sizes' hard bounds ([`deepfoids_learn::plan`]); the memory they

@@ -161,3 +161,14 @@ pub fn lone_fish_terms(scene: Scene, p: Vec3, bl_per_s: f32) -> [f32; 7] {
     env.step(&zeros(&env)).unwrap();
     terms(&env, 0)
 }
+
+/// Two fish of `scene` side by side 0.03 m apart at (0, −1.5, −1), both
+/// heading +z at 0.5 BL/s (each 0.0476 m wide if seabream: they overlap).
+pub fn touching_pair(scene: Scene) -> Env {
+    let mut env = calm_env(scene);
+    let c = Vec3::new(0.0, -1.5, -1.0);
+    place(&mut env, 0, c, Vec3::Z, 0.5);
+    place(&mut env, 1, c + Vec3::new(0.03, 0.0, 0.0), Vec3::Z, 0.5);
+    env.observe_now();
+    env
+}
