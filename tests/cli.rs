@@ -3,7 +3,7 @@
 mod support;
 
 use std::path::PathBuf;
-use support::{cli, temp_path, text};
+use support::{cli, cli_ok, temp_path, text};
 
 fn temp(name: &str) -> PathBuf {
     temp_path("cli", name)
@@ -11,8 +11,7 @@ fn temp(name: &str) -> PathBuf {
 
 #[test]
 fn scenes_lists_every_scene_with_density() {
-    let o = cli("scenes");
-    assert!(o.status.success(), "{}", text(&o));
+    let o = cli_ok("scenes");
     let t = text(&o);
     for id in [
         "coho_default",
@@ -31,11 +30,10 @@ fn scenes_lists_every_scene_with_density() {
 #[test]
 fn simulate_writes_trajectories() {
     let out = temp("simulate");
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "simulate --scene seabream_default --seconds 2 --seed 4 --out {}",
         out.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let csv = std::fs::read_to_string(out.join("trajectories.csv")).unwrap();
     let mut lines = csv.lines();
     assert_eq!(
@@ -76,11 +74,10 @@ fn simulate_writes_trajectories() {
 #[test]
 fn sensor_view_writes_a_png() {
     let out = temp("view").join("view.png");
-    let o = cli(&format!(
+    cli_ok(&format!(
         "sensor-view --scene seabream_default --fish 3 --step 5 --out {}",
         out.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let img = image::open(&out).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (1800, 560));
     // Not blank: the black background of the grid and white margins both appear.
@@ -131,12 +128,11 @@ fn an_unknown_policy_fails_clearly() {
 fn eval_writes_metrics_summary_and_plots() {
     for policy in ["foids", "boids", "random"] {
         let out = temp(&format!("eval-{policy}"));
-        let o = cli(&format!(
+        let o = cli_ok(&format!(
             "eval --scene seabream_50 --policy {} --seconds 5 --seed 2 --out {}",
             policy,
             out.display()
         ));
-        assert!(o.status.success(), "{}", text(&o));
         assert!(
             text(&o).contains("P ") && text(&o).contains("state:"),
             "{}",
@@ -184,11 +180,10 @@ fn eval_writes_metrics_summary_and_plots() {
 #[test]
 fn simulate_takes_the_baselines_too() {
     let out = temp("simulate-foids");
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "simulate --scene yellowtail_default --policy foids --seconds 1 --out {}",
         out.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("policy foids"));
 }
 
@@ -197,11 +192,10 @@ fn simulate_takes_the_baselines_too() {
 #[test]
 fn train_export_and_eval_through_onnx() {
     let runs = temp("train");
-    let o = cli(&format!(
+    cli_ok(&format!(
         "train --scene seabream_default --steps 600 --allow-no-update --seed 5 --runs-dir {} --run-id tiny --eval-seconds 0 --quiet",
         runs.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let run = runs.join("tiny");
     for f in [
         "config.toml",
@@ -224,12 +218,11 @@ fn train_export_and_eval_through_onnx() {
     );
 
     let onnx = runs.join("policy.onnx");
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "export --run {} --out {}",
         run.display(),
         onnx.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("opset 9"), "{}", text(&o));
     // The run's own final/<behaviour>.onnx is the same file.
     assert_eq!(
@@ -250,13 +243,12 @@ fn train_export_and_eval_through_onnx() {
     let mut pm = vec![];
     for policy in [onnx.to_str().unwrap(), run.to_str().unwrap()] {
         let out = runs.join(format!("eval-{}", pm.len()));
-        let o = cli(&format!(
+        cli_ok(&format!(
             "eval --scene seabream_default --policy {} --seconds 3 --seed 9 {} --out {}",
             policy, // The mean action: the ONNX runtime and Burn draw samples differently.
             "--deterministic",
             out.display()
         ));
-        assert!(o.status.success(), "{}", text(&o));
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
                 .unwrap();
@@ -305,13 +297,12 @@ fn compare_ppo_and_sac_runs() {
     assert!(sac_csv.contains("Policy/Entropy Coeff") && !sac_csv.contains("Losses/Q1 Loss"));
     assert!(sac_csv.contains("Environment/Reward per Decision"));
     let out = runs.join("cmp");
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "compare {} {} --seconds 2 --seeds 2 --out {}",
         runs.join("ppo").to_str().unwrap(),
         runs.join("sac").to_str().unwrap(),
         out.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let printed = text(&o);
     assert!(
         printed.contains("| ppo (ppo) |") && printed.contains("| sac (sac) |"),
@@ -359,11 +350,10 @@ fn compare_ppo_and_sac_runs() {
 #[test]
 fn pipeline_all_species_transfers_into_three_species() {
     let runs = temp("pipeline-all");
-    let o = cli(&format!(
+    cli_ok(&format!(
         "pipeline --species all --scenes three_species --pretrain-steps 1 --transfer-steps 200 --allow-no-update --eval-seconds 0.5 --runs-dir {} --run-id p --quiet",
         runs.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let root = runs.join("p");
     let csv = std::fs::read_to_string(root.join("summary.csv")).unwrap();
     let scenes: Vec<&str> = csv
@@ -407,8 +397,7 @@ fn pipeline_all_species_transfers_into_three_species() {
 /// it printed a rate with no update and nothing else).
 #[test]
 fn bench_train_warns_when_its_budget_makes_no_update() {
-    let o = cli("bench train --scene seabream_cube5 --steps 100");
-    assert!(o.status.success(), "{}", text(&o));
+    let o = cli_ok("bench train --scene seabream_cube5 --steps 100");
     let t = text(&o);
     assert!(
         t.contains("warning: 100 agent steps make no update of seabream_regular")

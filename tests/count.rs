@@ -7,7 +7,7 @@ mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use support::{cli, deepfoids, temp_path, text};
+use support::{cli, cli_ok, deepfoids, temp_path, text};
 
 fn tmp(name: &str) -> PathBuf {
     temp_path("count", name)
@@ -66,12 +66,11 @@ fn detector_trains_and_counts_end_to_end() {
         ],
     );
     let det = tmp("det");
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "train-detector --data {} --out {} --steps 40 --batch 4 --crop 64 --base 4 --view-size 256",
         data.display(),
         det.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
     assert!(
         t.contains("4 train frames") && t.contains("2 val frames"),
@@ -85,13 +84,12 @@ fn detector_trains_and_counts_end_to_end() {
     );
     assert!(last < first, "the loss did not fall: {first} → {last}");
     let out = tmp("out");
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "count {} --detector {} --view-size 256 --conf 0.3 --out {} --annotate 3",
         data.join("images").to_str().unwrap(),
         det.join("detector.onnx").to_str().unwrap(),
         out.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let stdout = String::from_utf8_lossy(&o.stdout).to_string();
     let lines: Vec<&str> = stdout.lines().collect();
     assert_eq!(
@@ -128,12 +126,11 @@ fn detector_trains_and_counts_end_to_end() {
             .output()
             .unwrap();
         assert!(enc.status.success(), "{}", text(&enc));
-        let o = cli(&format!(
+        let o = cli_ok(&format!(
             "count {} --detector {} --view-size 256 --conf 0.3 --quiet",
             video.display(),
             det.join("detector.onnx").to_str().unwrap()
         ));
-        assert!(o.status.success(), "{}", text(&o));
         assert_eq!(
             String::from_utf8_lossy(&o.stdout).lines().last().unwrap(),
             *last
@@ -181,13 +178,12 @@ fn image_stats_tells_sparse_from_dense() {
     let size = ["--frames", "2", "--width", "256", "--height", "256"];
     render("density_sparse", &sparse, &size);
     render("density_dense", &dense, &size);
-    let o = cli(&format!(
+    cli_ok(&format!(
         "image-stats {} {} --out {} --names sparse,dense",
         sparse.join("images").to_str().unwrap(),
         dense.join("images").to_str().unwrap(),
         out.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let csv = std::fs::read_to_string(out.join("annuli.csv")).unwrap();
     let rows: Vec<Vec<f64>> = csv
         .lines()

@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use support::{cli, temp_path, text};
+use support::{cli, cli_ok, temp_path, text};
 
 /// A fresh, empty temporary folder.
 fn temp(name: &str) -> PathBuf {
@@ -36,12 +36,11 @@ fn gif_frames(path: &Path) -> (u16, u16, Vec<u16>) {
 fn replay_writes_a_page_and_a_gif() {
     let dir = temp("scene");
     let (html, gif) = (dir.join("r.html"), dir.join("r.gif"));
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "replay --scene seabream_default --policy foids --seconds 4 --seed 2 --out {} --gif {}",
         s(&html),
         s(&gif)
     ));
-    assert!(o.status.success(), "{}", text(&o));
     assert!(
         text(&o).contains("21 frames × 10 fish over 4.0 s (5.00 frames/s)"),
         "{}",
@@ -63,12 +62,11 @@ fn replay_writes_a_page_and_a_gif() {
         "top and side views side by side: {w} × {h}"
     );
 
-    let o = cli(&format!(
+    cli_ok(&format!(
         "replay --scene seabream_default --seconds 2 --out {} --gif {} --gif-view top --gif-speed 2 --gif-size 200 --fps 2",
         s(&html),
         s(&gif)
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let (w, h, delays) = gif_frames(&gif);
     assert_eq!(delays, vec![25; 5], "t = 0, 0.5, … 2 s shown twice as fast");
     assert!(
@@ -85,11 +83,10 @@ fn replay_writes_a_page_and_a_gif() {
 fn eval_folders_replay_only_if_they_reproduce() {
     let dir = temp("eval");
     let run = dir.join("eval");
-    let o = cli(&format!(
+    cli_ok(&format!(
         "eval --scene seabream_50 --policy boids --seconds 3 --seed 5 --out {} --replay",
         s(&run)
     ));
-    assert!(o.status.success(), "{}", text(&o));
     assert!(run.join("replay.html").is_file() && run.join("pm.png").is_file());
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
@@ -101,8 +98,7 @@ fn eval_folders_replay_only_if_they_reproduce() {
     assert_eq!(summary["deterministic"], false);
 
     let html = dir.join("again.html");
-    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
-    assert!(o.status.success(), "{}", text(&o));
+    let o = cli_ok(&format!("replay --from {} --out {}", s(&run), s(&html)));
     assert!(
         text(&o).contains("16 frames × 50 fish over 3.0 s"),
         "{}",
@@ -137,23 +133,21 @@ fn eval_folders_replay_only_if_they_reproduce() {
 fn simulate_folders_replay_their_csv() {
     let dir = temp("simulate");
     let run = dir.join("sim");
-    let o = cli(&format!(
+    cli_ok(&format!(
         "simulate --scene seabream_50 --policy random --seconds 2 --seed 3 --out {}",
         s(&run)
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let meta: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("simulate.json")).unwrap()).unwrap();
     assert_eq!(meta["scene"], "seabream_50");
     assert_eq!(meta["seed"], 3);
     let (html, gif) = (dir.join("sim.html"), dir.join("sim.gif"));
-    let o = cli(&format!(
+    let o = cli_ok(&format!(
         "replay --from {} --out {} --gif {}",
         s(&run),
         s(&html),
         s(&gif)
     ));
-    assert!(o.status.success(), "{}", text(&o));
     assert!(
         text(&o).contains("11 frames × 50 fish over 2.0 s"),
         "{}",
@@ -179,12 +173,11 @@ fn simulate_folders_replay_their_csv() {
         "{}",
         text(&o)
     );
-    let o = cli(&format!(
+    cli_ok(&format!(
         "replay --from {} --scene seabream_50 --seed 3 --out {}",
         s(&run),
         s(&html)
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -10,7 +10,7 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-use support::{cli, command, command_line, deepfoids, temp_path, text};
+use support::{cli, cli_ok, command, command_line, deepfoids, temp_path, text};
 
 fn temp(name: &str) -> PathBuf {
     temp_path("robust", name)
@@ -146,8 +146,7 @@ fn zero_threads_are_refused() {
         &cli("--threads 100000 scenes"),
         "100000 is above the limit of 1024 threads",
     );
-    let o = cli("--threads 1 scenes");
-    assert!(o.status.success(), "{}", text(&o));
+    cli_ok("--threads 1 scenes");
 }
 
 /// A child process killed when the test ends, even by a failed assertion.
@@ -504,11 +503,10 @@ fn a_pipeline_in_use_is_refused() {
         "behaviour,step,tag,value\nold,1,x,1\n",
     )
     .unwrap();
-    let o = cli(&format!(
+    cli_ok(&format!(
         "pipeline --species seabream --scenes seabream_default --pretrain-steps 100 --transfer-steps 100 --allow-no-update --eval-seconds 1 --quiet --runs-dir {} --run-id p",
         runs.display()
     ));
-    assert!(o.status.success(), "{}", text(&o));
     let csv = std::fs::read_to_string(stage.join("scalars.csv")).unwrap();
     assert!(!csv.contains("old,"), "{csv}");
     assert!(stage.join("final/state.json").is_file());

@@ -31,6 +31,14 @@ pub fn cli(line: &str) -> Output {
     command_line(line).output().expect("the binary runs")
 }
 
+/// [`cli`], which must succeed (its output shown if not).
+#[track_caller]
+pub fn cli_ok(line: &str) -> Output {
+    let o = cli(line);
+    assert!(o.status.success(), "{}", text(&o));
+    o
+}
+
 /// Standard output, then standard error.
 pub fn text(o: &Output) -> String {
     format!(
