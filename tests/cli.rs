@@ -3,7 +3,7 @@
 mod support;
 
 use std::path::PathBuf;
-use support::{cli, cli_ok, temp_path, text};
+use support::{cli, cli_ok, json, temp_path, text};
 
 fn temp(name: &str) -> PathBuf {
     temp_path("cli", name)
@@ -150,9 +150,7 @@ fn eval_writes_metrics_summary_and_plots() {
             assert!((0.0..=1.0).contains(&p) && (0.0..=1.0).contains(&m));
             assert!(["swarm", "milling", "polarised", "transitional"].contains(&r[3]));
         }
-        let json: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
+        let json = json(&out.join("summary.json"));
         assert_eq!(json["scene"], "seabream_50");
         assert_eq!(json["policy"], policy);
         assert_eq!(json["seed"], 2);
@@ -249,9 +247,7 @@ fn train_export_and_eval_through_onnx() {
             "--deterministic",
             out.display()
         ));
-        let json: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
+        let json = json(&out.join("summary.json"));
         pm.push((
             json["summary"]["p_mean"].as_f64().unwrap(),
             json["summary"]["m_mean"].as_f64().unwrap(),

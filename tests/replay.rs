@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use support::{cli, cli_ok, temp_path, text};
+use support::{cli, cli_ok, json, temp_path, text};
 
 /// A fresh, empty temporary folder.
 fn temp(name: &str) -> PathBuf {
@@ -88,8 +88,7 @@ fn eval_folders_replay_only_if_they_reproduce() {
         s(&run)
     ));
     assert!(run.join("replay.html").is_file() && run.join("pm.png").is_file());
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    let summary = json(&run.join("summary.json"));
     assert_eq!(summary["rerun"]["scene"], "seabream_50");
     assert_eq!(summary["rerun"]["policy"], "boids");
     assert_eq!(summary["rerun"]["seed"], 5);
@@ -137,8 +136,7 @@ fn simulate_folders_replay_their_csv() {
         "simulate --scene seabream_50 --policy random --seconds 2 --seed 3 --out {}",
         s(&run)
     ));
-    let meta: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("simulate.json")).unwrap()).unwrap();
+    let meta = json(&run.join("simulate.json"));
     assert_eq!(meta["scene"], "seabream_50");
     assert_eq!(meta["seed"], 3);
     let (html, gif) = (dir.join("sim.html"), dir.join("sim.gif"));

@@ -48,6 +48,12 @@ pub fn text(o: &Output) -> String {
     )
 }
 
+/// The JSON file `path`, parsed.
+pub fn json(path: &std::path::Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 /// `deepfoids-<suite>-<name>-<pid>` in the temporary folder, removed if an
 /// earlier run left it (not created).
 pub fn temp_path(suite: &str, name: &str) -> PathBuf {
