@@ -14,33 +14,36 @@ pub fn tensor(name: &str, dims: &[i64], values: &[f32]) -> TensorProto {
     }
 }
 
+/// An attribute `name` of type `kind` with no value yet.
+fn attribute(name: &str, kind: i32) -> AttributeProto {
+    AttributeProto {
+        name: name.into(),
+        r#type: kind,
+        ..Default::default()
+    }
+}
+
 /// An attribute holding a list of integers.
 pub fn ints(name: &str, v: &[i64]) -> AttributeProto {
     AttributeProto {
-        name: name.into(),
         ints: v.to_vec(),
-        r#type: attribute_type::INTS,
-        ..Default::default()
+        ..attribute(name, attribute_type::INTS)
     }
 }
 
 /// An attribute holding one integer.
 pub fn int(name: &str, v: i64) -> AttributeProto {
     AttributeProto {
-        name: name.into(),
         i: Some(v),
-        r#type: attribute_type::INT,
-        ..Default::default()
+        ..attribute(name, attribute_type::INT)
     }
 }
 
 /// An attribute holding one float.
 pub fn float(name: &str, v: f32) -> AttributeProto {
     AttributeProto {
-        name: name.into(),
         f: Some(v),
-        r#type: attribute_type::FLOAT,
-        ..Default::default()
+        ..attribute(name, attribute_type::FLOAT)
     }
 }
 
