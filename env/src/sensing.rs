@@ -211,7 +211,12 @@ impl Sensing<'_> {
         }
         if counted > 0 {
             match ext.neighbour_form {
-                NeighbourForm::Sum => {}
+                NeighbourForm::Sum => {
+                    let budget = ext.neighbour_budget;
+                    if budget > 0 && counted > budget {
+                        seen.alignment_sum *= budget as f32 / counted as f32;
+                    }
+                }
                 NeighbourForm::Mean => seen.alignment_sum /= counted as f32,
                 NeighbourForm::Sqrt => seen.alignment_sum /= (counted as f32).sqrt(),
             }

@@ -191,10 +191,11 @@ fn personal_space() {
 
 /// r_ND of fish 0 with the four neighbours of the thesis-sum test of
 /// rewards.rs (headings 0°, 30°, 60°, 90° off: terms 1, 2/3, 1/3, 0; two of
-/// them touch, so no kicks here) under `form`.
-fn four_neighbours_nd(form: NeighbourForm) -> f32 {
+/// them touch, so no kicks here) under `form` and a neighbour `budget`.
+fn four_neighbours_nd(form: NeighbourForm, budget: u32) -> f32 {
     let mut s = scene("seabream_default", 5);
     s.rewards.extensions.neighbour_form = form;
+    s.rewards.extensions.neighbour_budget = budget;
     s.rewards.contacts.kick = 0.0;
     s.rewards.contacts.push = 0.0;
     four_neighbours_terms(calm_env(s))[ND]
@@ -204,10 +205,28 @@ fn four_neighbours_nd(form: NeighbourForm) -> f32 {
 /// 1.5 · 2/√4 = 1.5 (the sum itself is 3, rewards.rs).
 #[test]
 fn neighbour_mean_and_sqrt() {
-    let mean = four_neighbours_nd(NeighbourForm::Mean);
+    let mean = four_neighbours_nd(NeighbourForm::Mean, 0);
     assert!(close(mean, 0.75, 2e-3), "{mean}");
-    let sqrt = four_neighbours_nd(NeighbourForm::Sqrt);
+    let sqrt = four_neighbours_nd(NeighbourForm::Sqrt, 0);
     assert!(close(sqrt, 1.5, 2e-3), "{sqrt}");
+}
+
+/// The neighbour budget scales the sum (3 over four neighbours, rewards.rs)
+/// by budget/4 once more than `budget` count: 2 → 1.5, 1 → 0.75; a budget of
+/// 4 or more leaves it at 3. The mean form ignores it (0.75).
+#[test]
+fn neighbour_budget_scales_the_sum() {
+    for (form, budget, want) in [
+        (NeighbourForm::Sum, 0u32, 3.0f32),
+        (NeighbourForm::Sum, 1, 0.75),
+        (NeighbourForm::Sum, 2, 1.5),
+        (NeighbourForm::Sum, 4, 3.0),
+        (NeighbourForm::Sum, 90, 3.0),
+        (NeighbourForm::Mean, 2, 0.75),
+    ] {
+        let nd = four_neighbours_nd(form, budget);
+        assert!(close(nd, want, 2e-3), "{form:?} budget {budget}: {nd}");
+    }
 }
 
 /// Size assortment: a parallel neighbour half as long counts half:

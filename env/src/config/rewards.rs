@@ -4,7 +4,7 @@
 
 use super::check::{BL, SPEED, WEIGHT, check, check_count};
 use super::error::ConfigError;
-use crate::limits::MAX_NEIGHBOUR_CAP;
+use crate::limits::{MAX_FISH, MAX_NEIGHBOUR_CAP};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -137,6 +137,12 @@ pub struct Extensions {
     /// Penalty per neighbour inside the personal space, per decision, added to
     /// `r_ND` (> 0 means a cost). 0 (default): none.
     pub personal_space_penalty: f32,
+    /// A budget of neighbours for `r_ND`'s sum: with more than this many
+    /// counted, the sum is scaled by `budget / counted`, so packing past the
+    /// neighbours an even spread would bring within `d_sense` earns nothing more
+    /// (the mean alignment still pays; SPEC §6.2, a normalised r_ND). 0
+    /// (default): no budget. Only the `sum` form uses it.
+    pub neighbour_budget: u32,
     /// Assortment (Krause et al. 1996): `r_ND` counts only neighbours of the
     /// fish's own species. Default false.
     pub conspecific_only: bool,
@@ -156,6 +162,7 @@ impl Default for Extensions {
             neighbour_form: NeighbourForm::Sum,
             personal_space_bl: 0.0,
             personal_space_penalty: 0.0,
+            neighbour_budget: 0,
             conspecific_only: false,
             size_weighted: false,
             boundary_ends_episode: true,
@@ -238,6 +245,13 @@ impl RewardWeights {
             r.neighbour_cap as u64,
             cap as u64,
             "neighbours (0: every neighbour)",
+        )?;
+        check_count(
+            path,
+            "extensions.neighbour_budget",
+            r.extensions.neighbour_budget as u64,
+            MAX_FISH as u64,
+            "neighbours (0: no budget)",
         )?;
         check(
             path,
