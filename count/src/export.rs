@@ -3,16 +3,18 @@
 //!
 //! Input `image` `[1, 3, height, width]` (height and width symbolic: the net
 //! is fully convolutional); outputs `heatmap` = Sigmoid(heat head) and
-//! `boxes`. Opset 13: Conv (with `dilations`), LeakyRelu, Sigmoid. Burn's
+//! `boxes`. Opset 13: the local contrast of [`crate::model::local_contrast`]
+//! (AveragePool, Mul, Sub, Relu, Add, Sqrt, Div), Conv (with `dilations`),
+//! LeakyRelu, Sigmoid. Burn's
 //! and ONNX's convolution weights are both `[out, in, kh, kw]`.
 //! Metadata: `format` = `deepfoids-centernet`, `stride`, the training's
 //! view (`view_fov_deg`, `view_size`, `window`) and whatever the caller adds
 //! (data, budget, metrics).
 
-use crate::model::{DetectorNet, LAYERS, SLOPE, STRIDE};
+use crate::model::{DetectorNet, LAYERS, NORM_EPS, NORM_KERNEL, SLOPE, STRIDE};
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
-use deepfoids_learn::onnx::build::{ints, node, value_info};
+use deepfoids_learn::onnx::build::{float, int, ints, node, tensor, value_info};
 use deepfoids_learn::onnx::proto::*;
 
 pub const OPSET: i64 = 13;
@@ -41,6 +43,50 @@ impl Graph {
             raw_data,
         });
         name.into()
+    }
+
+    fn op(&mut self, op: &str, inputs: &[&str], output: &str) {
+        self.nodes.push(node(op, output, inputs, output, vec![]));
+    }
+
+    /// `(x − m) / √(v + ε²)` with the local mean `m` and variance `v`
+    /// ([`crate::model::local_contrast`]); returns the output's name.
+    fn local_contrast(&mut self, x: &str) -> String {
+        let (k, p) = (NORM_KERNEL as i64, (NORM_KERNEL / 2) as i64);
+        // A column pass, then a row pass (as the model does).
+        let pool = |g: &mut Self, input: &str, output: &str| {
+            let column = format!("{output}.columns");
+            for (from, to, kernel, pads) in [
+                (input, column.as_str(), [k, 1], [p, 0, p, 0]),
+                (column.as_str(), output, [1, k], [0, p, 0, p]),
+            ] {
+                g.nodes.push(node(
+                    "AveragePool",
+                    to,
+                    &[from],
+                    to,
+                    vec![
+                        ints("kernel_shape", &kernel),
+                        ints("strides", &[1, 1]),
+                        ints("pads", &pads),
+                        int("count_include_pad", 0),
+                    ],
+                ));
+            }
+        };
+        pool(self, x, "norm.mean");
+        self.op("Mul", &[x, x], "norm.square");
+        pool(self, "norm.square", "norm.mean_square");
+        self.op("Mul", &["norm.mean", "norm.mean"], "norm.mean2");
+        self.op("Sub", &["norm.mean_square", "norm.mean2"], "norm.var_raw");
+        self.op("Relu", &["norm.var_raw"], "norm.var");
+        self.init
+            .push(tensor("norm.eps2", &[], &[NORM_EPS * NORM_EPS]));
+        self.op("Add", &["norm.var", "norm.eps2"], "norm.var_eps");
+        self.op("Sqrt", &["norm.var_eps"], "norm.std");
+        self.op("Sub", &[x, "norm.mean"], "norm.centred");
+        self.op("Div", &["norm.centred", "norm.std"], "norm.out");
+        "norm.out".into()
     }
 
     fn conv(
@@ -82,7 +128,7 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
         nodes: vec![],
         init: vec![],
     };
-    let mut x = "image".to_string();
+    let mut x = g.local_contrast("image");
     for (i, (conv, &(_, s, d))) in net.body.iter().zip(LAYERS.iter()).enumerate() {
         let name = format!("body.{i}");
         g.conv(&name, conv, &x, &format!("{name}.out"), s, d);
@@ -92,12 +138,7 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
             &act,
             &[&format!("{name}.out")],
             &act,
-            vec![AttributeProto {
-                name: "alpha".into(),
-                f: Some(SLOPE as f32),
-                r#type: attribute_type::FLOAT,
-                ..Default::default()
-            }],
+            vec![float("alpha", SLOPE as f32)],
         ));
         x = act;
     }
