@@ -171,7 +171,7 @@ mod tests {
             .map(|i| if i % w >= 32 { 1.0 } else { 0.0 })
             .collect();
         let x = Tensor::<4>::from_data(TensorData::new(v, [1, 3, h, w]), &device);
-        let out = local_contrast(x).into_data().to_vec::<f32>().unwrap();
+        let out = local_contrast(x).into_data().try_to_vec::<f32>().unwrap();
         let at = |c: usize, y: usize, x: usize| out[(c * h + y) * w + x];
         for (c, y) in [(0, 0), (1, 31), (2, 63)] {
             assert!((at(c, y, 32) - 0.967472).abs() < 1e-4, "{}", at(c, y, 32));
