@@ -83,6 +83,24 @@ fn detector_trains_and_counts_end_to_end() {
         report["final_loss"].as_f64().unwrap(),
     );
     assert!(last < first, "the loss did not fall: {first} → {last}");
+    // The val split chose the detector's confidence, and `count` uses it
+    // unless --conf says otherwise.
+    let conf = report["conf"].as_f64().unwrap() as f32;
+    assert!((0.15..=0.6).contains(&conf), "{report}");
+    let o = cli_ok(&format!(
+        "count {} --detector {} --view-size 256 --max-frames 1 --quiet",
+        data.join("images").to_str().unwrap(),
+        det.join("detector.onnx").to_str().unwrap(),
+    ));
+    let first_line = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .next()
+        .unwrap_or("")
+        .to_string();
+    assert!(
+        first_line.contains(&format!("confidence {conf}")),
+        "{first_line}"
+    );
     let out = tmp("out");
     let o = cli_ok(&format!(
         "count {} --detector {} --view-size 256 --conf 0.3 --out {} --annotate 3",

@@ -46,9 +46,9 @@ pub struct CountOptions {
     /// Detector: our ONNX (`deepfoids train-detector`) or a YOLOv8 ONNX export [default: the shipped detectors/fish.onnx]
     #[arg(long, value_name = "X.onnx")]
     pub detector: Option<PathBuf>,
-    /// Least confidence of a detection
-    #[arg(long, default_value_t = 0.5)]
-    pub conf: f32,
+    /// Least confidence of a detection [default: the detector's `confidence` metadata (chosen on its val split by `train-detector`), else 0.5]
+    #[arg(long)]
+    pub conf: Option<f32>,
     /// IoU above which the one NMS merges boxes
     #[arg(long, default_value_t = 0.5)]
     pub iou: f32,
@@ -63,21 +63,25 @@ pub struct CountOptions {
     pub median: u32,
 }
 
-/// The counter of `opts`: the detector loaded, its training view as the default.
+/// `--detector`, else the shipped one.
+fn detector_path(opts: &CountOptions) -> Result<PathBuf> {
+    if let Some(p) = &opts.detector {
+        return Ok(p.clone());
+    }
+    let p = deepfoids_experiments::pretrained::detector();
+    if !p.is_file() {
+        bail!(
+            "no shipped detector at {}; pass --detector X.onnx (train one with `deepfoids train-detector`, or bring a YOLOv8 ONNX export)",
+            p.display()
+        );
+    }
+    Ok(p)
+}
+
+/// The counter of `opts`: the detector loaded, its training view and
+/// confidence as the defaults.
 pub fn counter(opts: &CountOptions) -> Result<Counter> {
-    let path = match &opts.detector {
-        Some(p) => p.clone(),
-        None => {
-            let p = deepfoids_experiments::pretrained::detector();
-            if !p.is_file() {
-                bail!(
-                    "no shipped detector at {}; pass --detector X.onnx (train one with `deepfoids train-detector`, or bring a YOLOv8 ONNX export)",
-                    p.display()
-                );
-            }
-            p
-        }
-    };
+    let path = detector_path(opts)?;
     let defaults = CountConfig::default();
     let detector = Detector::load(&path, defaults.window)?;
     let meta_f = |k: &str| detector.metadata.get(k).and_then(|v| v.parse::<f32>().ok());
@@ -96,7 +100,10 @@ pub fn counter(opts: &CountOptions) -> Result<Counter> {
             .or_else(|| meta_u("view_size"))
             .unwrap_or(defaults.view_size),
         median: opts.median,
-        conf: opts.conf,
+        conf: opts
+            .conf
+            .or_else(|| meta_f("confidence"))
+            .unwrap_or(defaults.conf),
         iou: opts.iou,
         ..defaults
     };
@@ -108,6 +115,14 @@ pub fn run(args: &CountArgs) -> Result<()> {
         bail!("--every must be at least 1");
     }
     let mut counter = counter(&args.opts)?;
+    let c = &counter.config;
+    println!(
+        "detector {}: confidence {}, view {}° on {} px",
+        detector_path(&args.opts)?.display(),
+        c.conf,
+        c.view_fov_deg,
+        c.view_size
+    );
     let _lock = match &args.out {
         Some(d) => Some(deepfoids_experiments::lock_dir(d)?),
         None => None,

@@ -86,10 +86,11 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
     if let Some(onnx) = &args.eval {
         let ev = evaluate(onnx, &data.val, &cfg.count)?;
         println!(
-            "{}: mAP50 {:.3} on {} val frames; count error {:.2} fish per frame (labelled {:.1})",
+            "{}: mAP50 {:.3} on {} val frames; at confidence {} (the least clip error) count error {:.2} fish per frame (labelled {:.1})",
             onnx.display(),
             ev.map50,
             data.val.len(),
+            ev.conf,
             ev.count_mae,
             ev.truth_mean
         );
