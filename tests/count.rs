@@ -92,6 +92,19 @@ fn detector_trains_and_counts_end_to_end() {
         data.join("images").to_str().unwrap(),
         det.join("detector.onnx").to_str().unwrap(),
     ));
+    // --eval scores it on the val split at its own confidence.
+    let ev = cli_ok(&format!(
+        "train-detector --data {} --out {} --view-size 256 --eval {}",
+        data.display(),
+        det.join("eval").display(),
+        det.join("detector.onnx").display()
+    ));
+    assert!(
+        text(&ev).contains(&format!("at confidence {conf} (the detector's)")),
+        "{}",
+        text(&ev)
+    );
+    assert!(det.join("eval/evaluation.json").is_file());
     let first_line = String::from_utf8_lossy(&o.stdout)
         .lines()
         .next()

@@ -219,12 +219,6 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
             }
         }
     }
-    if data.train.is_empty() {
-        return Err(CountError::Dataset {
-            path: dirs.first().cloned().unwrap_or_default(),
-            message: "no training frames".into(),
-        });
-    }
     Ok(data)
 }
 
@@ -467,6 +461,11 @@ pub fn train(
             value: cfg.crop.to_string(),
         });
     }
+    if data.train.is_empty() {
+        return Err(CountError::Train(
+            "no training frames: every clip of the --data folders is in their val split".into(),
+        ));
+    }
     std::fs::create_dir_all(out).map_err(CountError::io(out))?;
     let device = Device::flex();
     device.seed(cfg.seed);
@@ -563,7 +562,7 @@ pub fn train(
         log("no val frames: mAP50 not measured");
         None
     } else {
-        let ev = evaluate(&onnx_path, &data.val, &cfg.count)?;
+        let ev = evaluate(&onnx_path, &data.val, &cfg.count, None)?;
         log(&format!(
             "val: mAP50 {:.3}; confidence {} (the least clip error); count error {:.2} fish per frame (labelled {:.1})",
             ev.map50, ev.conf, ev.count_mae, ev.truth_mean
@@ -608,8 +607,9 @@ pub fn train(
 pub struct Evaluation {
     /// AP at IoU 0.5 over every frame (detections ranked from confidence 0.05).
     pub map50: f64,
-    /// The confidence the counts below use: the one of [`CONF_GRID`] with the
-    /// least mean |relative error| of the clips' MAX estimates.
+    /// The confidence the counts below use: the one given, else the one of
+    /// [`CONF_GRID`] with the least mean |relative error| of the clips' MAX
+    /// estimates.
     pub conf: f32,
     /// Mean |relative error| of the clips' MAX estimates at each confidence of
     /// [`CONF_GRID`].
@@ -688,8 +688,14 @@ pub fn choose_conf(samples: &[Sample], scores: &[Vec<f32>]) -> (f32, Vec<(f32, f
 }
 
 /// Score a detector on pre-processed samples, run as `count` runs it
-/// (windows, edge rule, NMS), and choose its confidence from [`CONF_GRID`].
-pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<Evaluation> {
+/// (windows, edge rule, NMS), counting at `conf`, or with `None` at the
+/// confidence these samples choose from [`CONF_GRID`] (a val split's).
+pub fn evaluate(
+    onnx: &Path,
+    samples: &[Sample],
+    cfg: &CountConfig,
+    conf: Option<f32>,
+) -> Result<Evaluation> {
     let detector = Detector::load(onnx, cfg.window)?;
     let low = CountConfig {
         conf: 0.05,
@@ -705,7 +711,8 @@ pub fn evaluate(onnx: &Path, samples: &[Sample], cfg: &CountConfig) -> Result<Ev
         truth.push(s.boxes.clone());
         ignore.push(s.ignore.clone());
     }
-    let (conf, clip_error_by_conf) = choose_conf(samples, &scores);
+    let (chosen, clip_error_by_conf) = choose_conf(samples, &scores);
+    let conf = conf.unwrap_or(chosen);
     let (mut err, mut tot) = (0.0, 0.0);
     for (s, sc) in samples.iter().zip(&scores) {
         let n = sc.iter().filter(|&&x| x >= conf).count();
