@@ -2,10 +2,9 @@
 
 mod support;
 
-use std::path::PathBuf;
-use support::{cli, cli_ok, json, temp_path, text};
+use support::{TempDir, cli, cli_ok, json, temp_path, text};
 
-fn temp(name: &str) -> PathBuf {
+fn temp(name: &str) -> TempDir {
     temp_path("cli", name)
 }
 

@@ -5,11 +5,11 @@
 
 mod support;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-use support::{cli, cli_ok, deepfoids, temp_path, text};
+use support::{TempDir, cli, cli_ok, deepfoids, temp_path, text};
 
-fn tmp(name: &str) -> PathBuf {
+fn tmp(name: &str) -> TempDir {
     temp_path("count", name)
 }
 

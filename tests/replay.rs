@@ -3,11 +3,11 @@
 
 mod support;
 
-use std::path::{Path, PathBuf};
-use support::{cli, cli_ok, json, temp_path, text};
+use std::path::Path;
+use support::{TempDir, cli, cli_ok, json, temp_path, text};
 
 /// A fresh, empty temporary folder.
-fn temp(name: &str) -> PathBuf {
+fn temp(name: &str) -> TempDir {
     let d = temp_path("replay", name);
     std::fs::create_dir_all(&d).unwrap();
     d

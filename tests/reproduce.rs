@@ -4,9 +4,9 @@
 
 mod support;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
-use support::{cli, command, temp_path, text};
+use support::{TempDir, cli, command, temp_path, text};
 
 /// The binary, with the shipped policies looked for in `policies` if given.
 fn deepfoids(args: &[&str], policies: Option<&Path>) -> Output {
@@ -17,7 +17,7 @@ fn deepfoids(args: &[&str], policies: Option<&Path>) -> Output {
     c.output().expect("the binary runs")
 }
 
-fn temp(name: &str) -> PathBuf {
+fn temp(name: &str) -> TempDir {
     temp_path("repro", name)
 }
 

@@ -7,17 +7,17 @@ mod support;
 use deepfoids_testkit::copy_dir;
 
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-use support::{cli, cli_ok, command, command_line, deepfoids, temp_path, text};
+use support::{TempDir, cli, cli_ok, command, command_line, deepfoids, temp_path, text};
 
-fn temp(name: &str) -> PathBuf {
+fn temp(name: &str) -> TempDir {
     temp_path("robust", name)
 }
 
 /// A copy of `configs/` with `from` replaced by `to` in the seabream default scene.
-fn configs_with(name: &str, from: &str, to: &str) -> PathBuf {
+fn configs_with(name: &str, from: &str, to: &str) -> TempDir {
     let root = temp(name);
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
     for sub in ["species", "sites", "scenes", "rewards", "baselines"] {
@@ -279,7 +279,7 @@ fn a_finished_command_leaves_no_lock() {
 
 /// `configs/` with `configs/train/ppo.toml` checkpointing every 100 agent
 /// decisions (so that a short run has checkpoints to resume from).
-fn configs_checkpointing(name: &str) -> PathBuf {
+fn configs_checkpointing(name: &str) -> TempDir {
     let root = configs_with(name, "count = 10", "count = 10");
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/train");
     std::fs::create_dir_all(root.join("train")).unwrap();
@@ -619,7 +619,7 @@ fn an_output_folder_below_a_file_names_the_option() {
 fn configuration_mistakes_are_named_plainly() {
     // A folder where species/seabream.toml belongs: not "unknown species".
     let species_root = configs_with("species-dir", "count = 10", "count = 10");
-    let root = species_root.clone();
+    let root = &species_root;
     let species = root.join("species/seabream.toml");
     std::fs::remove_file(&species).unwrap();
     std::fs::create_dir(&species).unwrap();
@@ -691,9 +691,6 @@ fn configuration_mistakes_are_named_plainly() {
     assert_eq!(text(&o).matches("not UTF-8").count(), 1, "{}", text(&o));
     assert!(!out.exists(), "nothing is written");
     let _ = std::fs::remove_file(&scene);
-    for d in [species_root, count_root, root, runs] {
-        let _ = std::fs::remove_dir_all(d);
-    }
 }
 
 /// Issue 25: a text file given as an ONNX policy said "Reading proto model".

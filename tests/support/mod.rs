@@ -55,9 +55,35 @@ pub fn json(path: &std::path::Path) -> serde_json::Value {
 }
 
 /// `deepfoids-<suite>-<name>-<pid>` in the temporary folder, removed if an
-/// earlier run left it (not created).
-pub fn temp_path(suite: &str, name: &str) -> PathBuf {
+/// earlier run left it (not created), and removed again when the returned
+/// guard drops — unless the test is failing, so its files can be read.
+pub fn temp_path(suite: &str, name: &str) -> TempDir {
     let d = std::env::temp_dir().join(format!("deepfoids-{suite}-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
-    d
+    TempDir(d)
+}
+
+/// A test's folder in the temporary folder ([`temp_path`]); a `Path` to use.
+#[derive(Debug)]
+pub struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::path::Path> for TempDir {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
