@@ -72,7 +72,8 @@ fn simulate_writes_trajectories() {
 
 #[test]
 fn sensor_view_writes_a_png() {
-    let out = temp("view").join("view.png");
+    let dir = temp("view");
+    let out = dir.join("view.png");
     cli_ok(&format!(
         "sensor-view --scene seabream_default --fish 3 --step 5 --out {}",
         out.display()
