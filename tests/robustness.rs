@@ -624,9 +624,7 @@ fn configuration_mistakes_are_named_plainly() {
     std::fs::remove_file(&species).unwrap();
     std::fs::create_dir(&species).unwrap();
     let out = temp("config-mistakes-out");
-    let o = on_seabream(Some(root), "eval", "1", &out)
-        .output()
-        .unwrap();
+    let o = on_seabream(Some(root), "eval", "1", &out).output().unwrap();
     assert_refused(
         &o,
         &format!("{} is a folder, not a TOML file", species.display()),
