@@ -54,6 +54,31 @@ impl Default for CountConfig {
 }
 
 impl CountConfig {
+    /// This configuration with the view and confidence the user chose, and
+    /// where they chose none (`None`) the detector's own from its metadata
+    /// (the training's `view_fov_deg` and `view_size`, the `confidence` its val
+    /// split chose), else the ones already here.
+    pub fn with_detector_defaults(
+        self,
+        detector: &Detector,
+        view_fov_deg: Option<f32>,
+        view_size: Option<u32>,
+        conf: Option<f32>,
+    ) -> Self {
+        Self {
+            view_fov_deg: view_fov_deg
+                .or_else(|| detector.meta("view_fov_deg"))
+                .unwrap_or(self.view_fov_deg),
+            view_size: view_size
+                .or_else(|| detector.meta("view_size"))
+                .unwrap_or(self.view_size),
+            conf: conf
+                .or_else(|| detector.meta("confidence"))
+                .unwrap_or(self.conf),
+            ..self
+        }
+    }
+
     /// Check every value; the error names it and what is allowed.
     pub fn validate(&self) -> Result<()> {
         let bad = |what, allowed, value: String| {

@@ -55,6 +55,11 @@ fn shape_text(s: &[Option<usize>]) -> String {
 }
 
 impl Detector {
+    /// The metadata entry `key` parsed as `T`, if it is there and parses.
+    pub fn meta<T: std::str::FromStr>(&self, key: &str) -> Option<T> {
+        self.metadata.get(key).and_then(|v| v.parse().ok())
+    }
+
     /// Load `path`, running windows of `window` pixels (unless the model fixes its input).
     pub fn load(path: &Path, window: u32) -> Result<Self> {
         if !path.is_file() {

@@ -591,15 +591,18 @@ pub fn train(
         parameters,
         onnx_bytes: onnx.len(),
     };
-    let p = out.join("report.json");
-    write_atomic(
-        &p,
-        serde_json::to_string_pretty(&serde_json::json!({"report": report, "config": cfg}))
-            .unwrap()
-            .as_bytes(),
-    )
-    .map_err(CountError::io(&p))?;
+    write_json(
+        &out.join("report.json"),
+        &serde_json::json!({"report": report, "config": cfg}),
+    )?;
     Ok(report)
+}
+
+/// `value` as pretty JSON at `path`, atomically.
+fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
+    let json = serde_json::to_string_pretty(value)
+        .map_err(|e| CountError::Train(format!("cannot write {}: {e}", path.display())))?;
+    write_atomic(path, json.as_bytes()).map_err(CountError::io(path))
 }
 
 /// A detector scored on pre-processed samples.
@@ -728,6 +731,48 @@ pub fn evaluate(
         count_mae: err / k,
         truth_mean: tot / k,
     })
+}
+
+/// `train-detector --eval`: score the detector `onnx` on the val samples at
+/// its own confidence (its metadata), else at the one these frames choose;
+/// write `out/evaluation.json`; return the report (a summary line, then one
+/// CSV row per clip).
+pub fn score_detector(
+    onnx: &Path,
+    val: &[Sample],
+    cfg: &CountConfig,
+    out: &Path,
+) -> Result<String> {
+    if val.is_empty() {
+        return Err(CountError::Train(
+            "no val frames in the --data folders: --eval scores their val split (render with --val-fraction)".into(),
+        ));
+    }
+    let own = Detector::load(onnx, cfg.window)?.meta::<f32>("confidence");
+    let ev = evaluate(onnx, val, cfg, own)?;
+    let mut text = format!(
+        "{}: mAP50 {:.3} on {} val frames; at confidence {} ({}) count error {:.2} fish per frame (labelled {:.1})\nclip,frames,labelled_max,estimate,relative_error\n",
+        onnx.display(),
+        ev.map50,
+        val.len(),
+        ev.conf,
+        if own.is_some() {
+            "the detector's"
+        } else {
+            "the least clip error on these frames"
+        },
+        ev.count_mae,
+        ev.truth_mean
+    );
+    for c in &ev.clips {
+        text += &format!(
+            "{},{},{},{},{:+.3}\n",
+            c.clip, c.frames, c.truth_max, c.estimate, c.relative_error
+        );
+    }
+    std::fs::create_dir_all(out).map_err(CountError::io(out))?;
+    write_json(&out.join("evaluation.json"), &ev)?;
+    Ok(text)
 }
 
 #[cfg(test)]

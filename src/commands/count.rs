@@ -84,29 +84,17 @@ pub fn counter(opts: &CountOptions) -> Result<Counter> {
     let path = detector_path(opts)?;
     let defaults = CountConfig::default();
     let detector = Detector::load(&path, defaults.window)?;
-    let meta_f = |k: &str| detector.metadata.get(k).and_then(|v| v.parse::<f32>().ok());
-    let meta_u = |k: &str| detector.metadata.get(k).and_then(|v| v.parse::<u32>().ok());
+    let camera = match opts.camera.as_str() {
+        "pinhole" => InputCamera::Pinhole,
+        _ => InputCamera::Fisheye { fov_deg: opts.fov },
+    };
     let config = CountConfig {
-        camera: match opts.camera.as_str() {
-            "pinhole" => InputCamera::Pinhole,
-            _ => InputCamera::Fisheye { fov_deg: opts.fov },
-        },
-        view_fov_deg: opts
-            .view_fov
-            .or_else(|| meta_f("view_fov_deg"))
-            .unwrap_or(defaults.view_fov_deg),
-        view_size: opts
-            .view_size
-            .or_else(|| meta_u("view_size"))
-            .unwrap_or(defaults.view_size),
+        camera,
         median: opts.median,
-        conf: opts
-            .conf
-            .or_else(|| meta_f("confidence"))
-            .unwrap_or(defaults.conf),
         iou: opts.iou,
         ..defaults
-    };
+    }
+    .with_detector_defaults(&detector, opts.view_fov, opts.view_size, opts.conf);
     Ok(Counter::new(config, detector)?)
 }
 

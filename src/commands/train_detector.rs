@@ -4,8 +4,7 @@
 use crate::args::whole;
 use anyhow::{Result, bail};
 use clap::Args;
-use deepfoids_count::Detector;
-use deepfoids_count::train::{TrainConfig, evaluate, load_data, train};
+use deepfoids_count::train::{TrainConfig, load_data, score_detector, train};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -85,42 +84,10 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         t.elapsed().as_secs_f64()
     );
     if let Some(onnx) = &args.eval {
-        if data.val.is_empty() {
-            bail!(
-                "no val frames in the --data folders: --eval scores their val split (render with --val-fraction)"
-            );
-        }
-        // The detector's own confidence (chosen on its training's val split),
-        // else the one these frames choose.
-        let own = Detector::load(onnx, cfg.count.window)?
-            .metadata
-            .get("confidence")
-            .and_then(|v| v.parse::<f32>().ok());
-        let ev = evaluate(onnx, &data.val, &cfg.count, own)?;
-        println!(
-            "{}: mAP50 {:.3} on {} val frames; at confidence {} ({}) count error {:.2} fish per frame (labelled {:.1})",
-            onnx.display(),
-            ev.map50,
-            data.val.len(),
-            ev.conf,
-            if own.is_some() {
-                "the detector's"
-            } else {
-                "the least clip error on these frames"
-            },
-            ev.count_mae,
-            ev.truth_mean
+        print!(
+            "{}",
+            score_detector(onnx, &data.val, &cfg.count, &args.out)?
         );
-        println!("clip,frames,labelled_max,estimate,relative_error");
-        for c in &ev.clips {
-            println!(
-                "{},{},{},{},{:+.3}",
-                c.clip, c.frames, c.truth_max, c.estimate, c.relative_error
-            );
-        }
-        let p = args.out.join("evaluation.json");
-        std::fs::create_dir_all(&args.out)?;
-        deepfoids_io::write_atomic(&p, serde_json::to_string_pretty(&ev)?.as_bytes())?;
         return Ok(());
     }
     let quiet = args.quiet;
