@@ -562,7 +562,8 @@ pub fn train(
         log("no val frames: mAP50 not measured");
         None
     } else {
-        let ev = evaluate(&onnx_path, &data.val, &cfg.count, None)?;
+        let detector = Detector::load(&onnx_path, cfg.count.window)?;
+        let ev = evaluate(detector, &data.val, &cfg.count, None)?;
         log(&format!(
             "val: mAP50 {:.3}; confidence {} (the least clip error); count error {:.2} fish per frame (labelled {:.1})",
             ev.map50, ev.conf, ev.count_mae, ev.truth_mean
@@ -694,12 +695,11 @@ pub fn choose_conf(samples: &[Sample], scores: &[Vec<f32>]) -> (f32, Vec<(f32, f
 /// (windows, edge rule, NMS), counting at `conf`, or with `None` at the
 /// confidence these samples choose from [`CONF_GRID`] (a val split's).
 pub fn evaluate(
-    onnx: &Path,
+    detector: Detector,
     samples: &[Sample],
     cfg: &CountConfig,
     conf: Option<f32>,
 ) -> Result<Evaluation> {
-    let detector = Detector::load(onnx, cfg.window)?;
     let low = CountConfig {
         conf: 0.05,
         camera: InputCamera::Pinhole,
@@ -748,8 +748,9 @@ pub fn score_detector(
             "no val frames in the --data folders: --eval scores their val split (render with --val-fraction)".into(),
         ));
     }
-    let own = Detector::load(onnx, cfg.window)?.meta::<f32>("confidence");
-    let ev = evaluate(onnx, val, cfg, own)?;
+    let detector = Detector::load(onnx, cfg.window)?;
+    let own = detector.meta::<f32>("confidence");
+    let ev = evaluate(detector, val, cfg, own)?;
     let mut text = format!(
         "{}: mAP50 {:.3} on {} val frames; at confidence {} ({}) count error {:.2} fish per frame (labelled {:.1})\nclip,frames,labelled_max,estimate,relative_error\n",
         onnx.display(),

@@ -106,7 +106,7 @@ pub fn run(args: &CountArgs) -> Result<()> {
     let c = &counter.config;
     println!(
         "detector {}: confidence {}, view {}° on {} px",
-        detector_path(&args.opts)?.display(),
+        counter.detector.path.display(),
         c.conf,
         c.view_fov_deg,
         c.view_size
