@@ -5,8 +5,8 @@ use crate::boxes::{Detection, cut_by_inner_edge, nms};
 use crate::detector::Detector;
 use crate::error::{CountError, Result};
 use crate::frames::Frames;
-use crate::preprocess::{InputCamera, PerspectiveView, median_blur};
-use crate::windows::{crop, thesis_count, windows};
+use crate::preprocess::{InputCamera, PerspectiveView, local_contrast, median_blur};
+use crate::windows::{crop, crop_planes, thesis_count, windows};
 use deepfoids_io::write_atomic;
 use image::RgbImage;
 use rayon::prelude::*;
@@ -181,10 +181,21 @@ impl Counter {
         let c = &self.config;
         let (w, h) = view.dimensions();
         let wins = windows(w, h, c.window, c.step);
+        // Our detector's local contrast, once for the whole view.
+        let planes = self
+            .detector
+            .cuts_local_contrast
+            .filter(|_| self.detector.input == c.window)
+            .map(|(k, eps)| local_contrast(view, k, eps));
         let per_window: Vec<Vec<Detection>> = wins
             .par_iter()
             .map(|&win| {
-                let dets = self.detector.detect(&crop(view, win, c.window), c.conf)?;
+                let dets = match &planes {
+                    Some(p) => self
+                        .detector
+                        .detect_input(crop_planes(p, (w, h), win, c.window), c.conf)?,
+                    None => self.detector.detect(&crop(view, win, c.window), c.conf)?,
+                };
                 Ok(dets
                     .into_iter()
                     .map(|d| d.scaled_shifted(1.0, win.x as f32, win.y as f32))

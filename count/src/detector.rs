@@ -16,9 +16,18 @@
 //!
 //! A window is fed at the model's fixed input size if it has one (resized
 //! bilinearly, boxes scaled back), else at its own size.
+//!
+//! Our graph begins with the input's local contrast (two 31-px average pools
+//! per moment). [`Detector::load`] cuts it off and the caller feeds the
+//! network [`local_contrast`] planes instead, computed once per view with
+//! running sums ([`Detector::cuts_local_contrast`]); tract pooled every
+//! overlapping window again, which cost 40 % of the frame rate.
+//! [`Detector::load_as_exported`] keeps the graph whole (its parity test).
 
 use crate::boxes::Detection;
 use crate::error::{CountError, Result};
+use crate::model::{NORM_EPS, NORM_KERNEL};
+use crate::preprocess::local_contrast;
 use deepfoids_onnx::runtime::{read_metadata, why_not_onnx};
 use image::RgbImage;
 use std::collections::HashMap;
@@ -44,7 +53,13 @@ pub struct Detector {
     pub input: u32,
     pub path: PathBuf,
     pub metadata: HashMap<String, String>,
+    /// `Some((k, ε))` when the graph's own local contrast was cut off at load:
+    /// the network then takes [`local_contrast`] planes, not pixels.
+    pub cuts_local_contrast: Option<(usize, f32)>,
 }
+
+/// The name of the last node of our graph's local contrast (`crate::export`).
+const NORM_OUT: &str = "norm.out";
 
 fn shape_text(s: &[Option<usize>]) -> String {
     let d: Vec<String> = s
@@ -60,8 +75,18 @@ impl Detector {
         self.metadata.get(key).and_then(|v| v.parse().ok())
     }
 
-    /// Load `path`, running windows of `window` pixels (unless the model fixes its input).
+    /// Load `path`, running windows of `window` pixels (unless the model
+    /// fixes its input). Ours loses its local contrast (see the module doc).
     pub fn load(path: &Path, window: u32) -> Result<Self> {
+        Self::load_graph(path, window, true)
+    }
+
+    /// [`Detector::load`] with the graph exactly as exported.
+    pub fn load_as_exported(path: &Path, window: u32) -> Result<Self> {
+        Self::load_graph(path, window, false)
+    }
+
+    fn load_graph(path: &Path, window: u32, cut_norm: bool) -> Result<Self> {
         if !path.is_file() {
             return Err(CountError::Missing {
                 path: path.to_path_buf(),
@@ -79,6 +104,19 @@ impl Detector {
                 why: why_not_onnx(&bytes, &e, ""),
             })?;
         let metadata = read_metadata(&bytes);
+        let ours = metadata.get("format").map(String::as_str) == Some(crate::export::FORMAT);
+        let cuts_local_contrast = match model.node_id_by_name(NORM_OUT) {
+            Ok(norm) if cut_norm && ours => {
+                // The network's first layers read the input itself instead.
+                let image = model.input_outlets().map_err(|e| not_onnx(&e))?[0];
+                let readers = model.node(norm).outputs[0].successors.clone();
+                for inlet in readers {
+                    model.add_edge(image, inlet).map_err(|e| not_onnx(&e))?;
+                }
+                Some((NORM_KERNEL, NORM_EPS))
+            }
+            _ => None,
+        };
         let fixed = model
             .input_fact(0)
             .map_err(|e| not_onnx(&e))?
@@ -168,6 +206,7 @@ impl Detector {
             input,
             path: path.to_path_buf(),
             metadata,
+            cuts_local_contrast,
         })
     }
 
@@ -186,8 +225,25 @@ impl Detector {
         } else {
             crop
         };
+        let dets = self.detect_input(self.input_of(img), conf)?;
+        let k = cw as f32 / self.input as f32;
+        Ok(dets.iter().map(|d| d.scaled_shifted(k, 0.0, 0.0)).collect())
+    }
+
+    /// The network's input for an image of the input's size: its pixels in
+    /// [0, 1], or their local contrast where the graph's own was cut off.
+    pub fn input_of(&self, img: &RgbImage) -> Vec<f32> {
+        match self.cuts_local_contrast {
+            Some((k, eps)) => local_contrast(img, k, eps),
+            None => to_chw(img),
+        }
+    }
+
+    /// Detections (input pixels) from a `[3, input, input]` network input
+    /// ([`Detector::input_of`], or a window of a view's local contrast).
+    pub fn detect_input(&self, chw: Vec<f32>, conf: f32) -> Result<Vec<Detection>> {
         let n = self.input as usize;
-        let input = Tensor::from_shape(&[1, 3, n, n], &to_chw(img)).map_err(|e| self.runtime(e))?;
+        let input = Tensor::from_shape(&[1, 3, n, n], &chw).map_err(|e| self.runtime(e))?;
         let out = self
             .plan
             .run(tvec!(input.into()))
@@ -198,7 +254,7 @@ impl Detector {
                 .map(|a| (a.shape().to_vec(), a.iter().copied().collect::<Vec<f32>>()))
                 .map_err(|e| self.runtime(e))
         };
-        let dets = match self.format {
+        Ok(match self.format {
             DetectorFormat::Ours { stride } => {
                 let (s, heat) = view(0)?;
                 let (_, boxes) = view(1)?;
@@ -208,12 +264,11 @@ impl Detector {
                 let (s, o) = view(0)?;
                 decode_yolov8(&o, s[1], s[2], conf)
             }
-        };
-        let k = cw as f32 / self.input as f32;
-        Ok(dets.iter().map(|d| d.scaled_shifted(k, 0.0, 0.0)).collect())
+        })
     }
 
-    /// The raw outputs (row-major) for an input `[1, 3, input, input]` in [0, 1].
+    /// The raw outputs (row-major) for a network input `[1, 3, input, input]`
+    /// ([`Detector::input_of`]).
     pub fn run_raw(&self, chw: &[f32]) -> Result<Vec<Vec<f32>>> {
         let n = self.input as usize;
         let input = Tensor::from_shape(&[1, 3, n, n], chw).map_err(|e| self.runtime(e))?;

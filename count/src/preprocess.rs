@@ -180,9 +180,77 @@ impl PerspectiveView {
     }
 }
 
+/// The local contrast of [`crate::model::local_contrast`] on a whole image,
+/// as `[3, H, W]` floats: per channel `(x − m) / √(v + ε²)`, with `m` and `v`
+/// the mean and variance of the `k × k` square around the pixel (`k` odd),
+/// the part outside the image not counted. Pixels are `x = byte / 255`.
+///
+/// Running sums (column prefix sums, then a row prefix sum: a few adds a
+/// pixel whatever `k`, in f64), so the counting pipeline normalises each view
+/// once and cuts its windows from the result, where the exported graph pools
+/// every window again (`Detector::load` bypasses that part of the graph).
+/// Inside a window this equals the graph's output; within `k/2` of a window's
+/// inner edge it is better, as the square sees the neighbouring pixels.
+pub fn local_contrast(img: &RgbImage, k: usize, eps: f32) -> Vec<f32> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let (p, plane) = (k / 2, w * h);
+    let eps2 = f64::from(eps) * f64::from(eps);
+    let mut out = vec![0f32; 3 * plane];
+    out.par_chunks_mut(plane.max(1))
+        .enumerate()
+        .for_each(|(c, out)| {
+            let x: Vec<f64> = img.as_raw()[c..]
+                .iter()
+                .step_by(3)
+                .map(|&b| f64::from(f32::from(b) / 255.0))
+                .collect();
+            let row_span = |y: usize| (y.saturating_sub(p), (y + p + 1).min(h));
+            let col_span = |x: usize| (x.saturating_sub(p), (x + p + 1).min(w));
+            // Column prefix sums of x and x²: `sums[(y + 1)·w + x]` holds rows 0..=y.
+            let mut sums = vec![[0f64; 2]; (h + 1) * w];
+            for y in 0..h {
+                for i in 0..w {
+                    let (v, [s, s2]) = (x[y * w + i], sums[y * w + i]);
+                    sums[(y + 1) * w + i] = [s + v, s2 + v * v];
+                }
+            }
+            let mut row = vec![[0f64; 2]; w + 1];
+            for y in 0..h {
+                let (y0, y1) = row_span(y);
+                for i in 0..w {
+                    let (a, b) = (sums[y0 * w + i], sums[y1 * w + i]);
+                    row[i + 1] = [row[i][0] + b[0] - a[0], row[i][1] + b[1] - a[1]];
+                }
+                for i in 0..w {
+                    let (x0, x1) = col_span(i);
+                    let n = ((y1 - y0) * (x1 - x0)) as f64;
+                    let m = (row[x1][0] - row[x0][0]) / n;
+                    let v = ((row[x1][1] - row[x0][1]) / n - m * m).max(0.0);
+                    out[y * w + i] = ((x[y * w + i] - m) / (v + eps2).sqrt()) as f32;
+                }
+            }
+        });
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 3 × 1 image, channel 0 = 0, 0.2, 0.4 (bytes 0, 51, 102), k = 3,
+    /// ε = 0.02: pixel 0's square holds 0 and 0.2 (m 0.1, v 0.01), so
+    /// −0.1/√0.0104 = −0.98058; pixel 1's holds all three (m 0.2), so 0;
+    /// pixel 2 mirrors pixel 0. A flat channel gives 0 everywhere.
+    #[test]
+    fn local_contrast_by_hand() {
+        let img = RgbImage::from_fn(3, 1, |x, _| image::Rgb([51 * x as u8, 9, 9]));
+        let out = local_contrast(&img, 3, 0.02);
+        let want = [-0.98058, 0.0, 0.98058];
+        for (got, want) in out[..3].iter().zip(want) {
+            assert!((got - want).abs() < 1e-4, "{:?}", &out[..3]);
+        }
+        assert!(out[3..].iter().all(|v| v.abs() < 1e-6), "{out:?}");
+    }
 
     /// 3 × 3 median of a single bright speck on grey: the speck disappears,
     /// an edge stays where it was.

@@ -56,6 +56,22 @@ pub fn crop(img: &image::RgbImage, w: Window, window: u32) -> image::RgbImage {
     out
 }
 
+/// The `window × window` crop at `w` of `[3, H, W]` planes of a
+/// `width × height` image (zero outside the image), as `[3, window, window]`.
+pub fn crop_planes(planes: &[f32], (iw, ih): (u32, u32), w: Window, window: u32) -> Vec<f32> {
+    let (n, plane) = (window as usize, (iw * ih) as usize);
+    let mut out = vec![0f32; 3 * n * n];
+    let cw = window.min(iw.saturating_sub(w.x)) as usize;
+    for c in 0..3 {
+        for row in 0..window.min(ih.saturating_sub(w.y)) as usize {
+            let src = c * plane + (w.y as usize + row) * iw as usize + w.x as usize;
+            let dst = (c * n + row) * n;
+            out[dst..dst + cw].copy_from_slice(&planes[src..src + cw]);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -94,5 +110,20 @@ mod tests {
         assert_eq!(c.get_pixel(1, 2).0, [4, 3, 7]);
         assert_eq!(c.get_pixel(2, 0).0, [0, 0, 0]); // x = 5: outside
         assert_eq!(c.get_pixel(0, 2).0, [3, 3, 7]);
+    }
+
+    /// The planes' crop is the pixels' crop, plane by plane, padding included.
+    #[test]
+    fn plane_crop_is_the_pixel_crop() {
+        let img = image::RgbImage::from_fn(5, 4, |x, y| image::Rgb([x as u8, y as u8, 7]));
+        let chw = crate::detector::to_chw(&img);
+        for win in [
+            Window { x: 3, y: 1 },
+            Window { x: 0, y: 0 },
+            Window { x: 4, y: 3 },
+        ] {
+            let want = crate::detector::to_chw(&crop(&img, win, 3));
+            assert_eq!(crop_planes(&chw, (5, 4), win, 3), want, "{win:?}");
+        }
     }
 }

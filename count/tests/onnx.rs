@@ -6,7 +6,7 @@ use burn::prelude::*;
 use deepfoids_count::count::{CountConfig, Counter};
 use deepfoids_count::detector::{Detector, DetectorFormat, to_chw};
 use deepfoids_count::export::export_detector;
-use deepfoids_count::model::DetectorNetConfig;
+use deepfoids_count::model::{DetectorNet, DetectorNetConfig, NORM_EPS, NORM_KERNEL};
 use deepfoids_count::{CountError, InputCamera};
 use deepfoids_learn::onnx::build::{self, ints, tensor, value_info};
 use deepfoids_learn::onnx::proto::*;
@@ -162,20 +162,37 @@ fn files_that_are_not_detectors_are_named() {
 
 /// Our exported network through tract against Burn's forward: heatmap =
 /// sigmoid(heat logits) and boxes within 1e-4 on a random 64 × 64 input,
-/// with a guard that the outputs are not all zero.
+/// with a guard that the outputs are not all zero. Both as exported (the
+/// graph's own local contrast) and as `count` loads it (the graph's cut off,
+/// the running-sum `local_contrast` fed instead).
 #[test]
 fn our_export_matches_burn() {
     let dev = Device::flex();
     let net = DetectorNetConfig::new().with_base(4).init(&dev);
     let p = tmp("ours.onnx");
     std::fs::write(&p, export_detector(&net, &[])).unwrap();
-    let det = Detector::load(&p, 64).unwrap();
-    assert_eq!(det.format, DetectorFormat::Ours { stride: 8 });
     let img = image::RgbImage::from_fn(64, 64, |x, y| {
         image::Rgb([(x * 4) as u8, (y * 4) as u8, ((x * 7 + y * 13) % 256) as u8])
     });
     let chw = to_chw(&img);
-    let tract = det.run_raw(&chw).unwrap();
+    let whole = Detector::load_as_exported(&p, 64).unwrap();
+    assert_eq!(whole.format, DetectorFormat::Ours { stride: 8 });
+    assert_eq!(whole.cuts_local_contrast, None);
+    let cut = Detector::load(&p, 64).unwrap();
+    assert_eq!(cut.cuts_local_contrast, Some((NORM_KERNEL, NORM_EPS)));
+    let cut_input = cut.input_of(&img);
+    assert!(cut_input != chw, "the cut graph takes the local contrast");
+    for tract in [
+        whole.run_raw(&chw).unwrap(),
+        cut.run_raw(&cut_input).unwrap(),
+    ] {
+        check_against_burn(&net, &chw, &tract);
+    }
+}
+
+fn check_against_burn(net: &DetectorNet, chw: &[f32], tract: &[Vec<f32>]) {
+    let dev = Device::flex();
+    let chw = chw.to_vec();
     let x = Tensor::<4>::from_data(TensorData::new(chw, [1, 3, 64, 64]), &dev);
     let (heat, boxes) = net.forward(x);
     let heat: Vec<f32> = burn::tensor::activation::sigmoid(heat)

@@ -158,7 +158,9 @@ pub struct BenchCountArgs {
     pub frames: usize,
 }
 
-/// `deepfoids bench count`: frames per second of the whole pipeline, and its split.
+/// `deepfoids bench count`: frames per second of the whole pipeline, and
+/// its split. With our detector, also the graph as exported (its own local
+/// contrast pooled per window) on the same frames, interleaved, and the ratio.
 pub fn bench(args: &BenchCountArgs) -> Result<()> {
     let mut counter = counter(&args.opts)?;
     let mut frames = deepfoids_count::frames::Frames::open(&args.input)?;
@@ -172,32 +174,67 @@ pub fn bench(args: &BenchCountArgs) -> Result<()> {
     if imgs.len() < 2 {
         bail!("{} holds fewer than 2 frames", args.input.display());
     }
-    counter.frame(&imgs[0])?;
-    let (mut t_pre, mut t_det, mut fish, mut wins) = (0.0, 0.0, 0, 0);
-    for img in &imgs[1..] {
+    let mut exported = match counter.detector.cuts_local_contrast {
+        Some(_) => {
+            let d = &counter.detector;
+            let whole = Detector::load_as_exported(&d.path, d.input)?;
+            Some(Counter::new(counter.config.clone(), whole)?)
+        }
+        None => None,
+    };
+    // Seconds pre-processing, seconds detecting, fish, windows.
+    let time = |counter: &mut Counter, img, sums: &mut [f64; 4]| -> Result<()> {
         let t = Instant::now();
         let view = counter.preprocess(img);
-        t_pre += t.elapsed().as_secs_f64();
+        sums[0] += t.elapsed().as_secs_f64();
         let t = Instant::now();
         let (d, w) = counter.detect(&view)?;
-        t_det += t.elapsed().as_secs_f64();
-        fish += d.len();
-        wins = w;
+        sums[1] += t.elapsed().as_secs_f64();
+        sums[2] += d.len() as f64;
+        sums[3] = w as f64;
+        Ok(())
+    };
+    let (mut ours, mut theirs) = ([0.0; 4], [0.0; 4]);
+    counter.frame(&imgs[0])?;
+    if let Some(e) = exported.as_mut() {
+        e.frame(&imgs[0])?;
+    }
+    for img in &imgs[1..] {
+        time(&mut counter, img, &mut ours)?;
+        if let Some(e) = exported.as_mut() {
+            time(e, img, &mut theirs)?;
+        }
     }
     let n = (imgs.len() - 1) as f64;
     let (w, h) = imgs[0].dimensions();
     println!(
-        "{w}×{h} {}, {} threads, {wins} windows per frame, detector {}: {:.1} fish per frame",
+        "{w}×{h} {}, {} threads, {} windows per frame, detector {}: {:.1} fish per frame",
         args.opts.camera,
         rayon::current_num_threads(),
+        ours[3],
         counter.detector.path.display(),
-        fish as f64 / n
+        ours[2] / n
     );
-    println!(
-        "{:.2} frames/s (pre-processing {:.0} ms, detection + NMS {:.0} ms per frame)",
-        n / (t_pre + t_det),
-        1e3 * t_pre / n,
-        1e3 * t_det / n
-    );
+    let rate = |s: &[f64; 4]| n / (s[0] + s[1]);
+    let line = |what: &str, s: &[f64; 4]| {
+        println!(
+            "{what}{:.2} frames/s (pre-processing {:.0} ms, detection + NMS {:.0} ms per frame)",
+            rate(s),
+            1e3 * s[0] / n,
+            1e3 * s[1] / n
+        )
+    };
+    line("", &ours);
+    if exported.is_some() {
+        line(
+            "the graph as exported (local contrast per window): ",
+            &theirs,
+        );
+        println!(
+            "ratio {:.2}× ({:.1} fish per frame as exported)",
+            rate(&ours) / rate(&theirs),
+            theirs[2] / n
+        );
+    }
     Ok(())
 }
