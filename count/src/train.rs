@@ -62,6 +62,10 @@ pub struct TrainConfig {
     pub count: CountConfig,
     /// Use at most this many training frames (0: all); 0.
     pub max_frames: usize,
+    /// Train the fish the renderer found too faint to label as water
+    /// (negatives), so the detector learns the labels' idea of visible;
+    /// otherwise they are ignored (neither positives nor negatives); false.
+    pub faint_as_water: bool,
 }
 
 impl Default for TrainConfig {
@@ -76,6 +80,7 @@ impl Default for TrainConfig {
             seed: 0,
             count: CountConfig::default(),
             max_frames: 0,
+            faint_as_water: false,
         }
     }
 }
@@ -86,9 +91,12 @@ pub struct Sample {
     pub image: RgbImage,
     /// The labelled (detectable) fish.
     pub boxes: Vec<Detection>,
-    /// Fish in view that the renderer found too faint to label (contrast
-    /// below its `--min-contrast`): neither positives nor negatives.
+    /// Labelled fish under 2 px: neither positives nor negatives.
     pub ignore: Vec<Detection>,
+    /// Fish in view that the renderer found too faint to label (contrast
+    /// below its `--min-contrast`): ignored by the scores, and by the
+    /// training unless [`TrainConfig::faint_as_water`].
+    pub faint: Vec<Detection>,
     pub clip: String,
 }
 
@@ -161,7 +169,7 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                     .map_err(|e| dataset_err(&mask_file, e.to_string()))?
                     .into_luma16())
             };
-            let (image, boxes, ignore) = if lens["model"] == "fisheye" {
+            let (image, boxes, faint) = if lens["model"] == "fisheye" {
                 let theta_max = lens["theta_max"].as_f64().unwrap_or(0.0) as f32;
                 let fov = 2.0 * theta_max.to_degrees();
                 let (w, h) = raw.dimensions();
@@ -195,12 +203,12 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                     })
                     .collect();
                 let (w, h) = raw.dimensions();
-                let ignore = if mask_file.is_file() {
+                let faint = if mask_file.is_file() {
                     faint_boxes(read_mask()?.as_raw(), w, h, &ids)
                 } else {
                     Vec::new()
                 };
-                (raw, boxes, ignore)
+                (raw, boxes, faint)
             };
             // A labelled fish under 2 px is ignored too: not a fish to find.
             let (boxes, small): (Vec<Detection>, Vec<Detection>) = boxes
@@ -209,7 +217,8 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
             let sample = Sample {
                 image,
                 boxes,
-                ignore: ignore.into_iter().chain(small).collect(),
+                ignore: small,
+                faint,
                 clip: format!("{}#{}", dir.display(), im["clip"]),
             };
             if split == "val" {
@@ -357,10 +366,16 @@ pub fn targets(boxes: &[Detection], ignore: &[Detection], crop: u32) -> Targets 
 }
 
 /// A random `crop × crop` piece of a sample (zero-padded), maybe mirrored,
-/// with its labelled and ignored boxes. Half the crops hold a labelled fish
+/// with its labelled and ignored boxes (the faint fish among the ignored
+/// unless `faint_as_water`). Half the crops hold a labelled fish
 /// drawn at random, anywhere in the crop: a bottom camera's school fills a
 /// small part of the view, and uniform crops were mostly empty water.
-fn random_crop(s: &Sample, crop: u32, rng: &mut Rng) -> (RgbImage, Vec<Detection>, Vec<Detection>) {
+fn random_crop(
+    s: &Sample,
+    crop: u32,
+    faint_as_water: bool,
+    rng: &mut Rng,
+) -> (RgbImage, Vec<Detection>, Vec<Detection>) {
     let (w, h) = s.image.dimensions();
     let (max_x, max_y) = (w.saturating_sub(crop), h.saturating_sub(crop));
     let (x, y) = if !s.boxes.is_empty() && rng.next() & 1 == 1 {
@@ -385,7 +400,11 @@ fn random_crop(s: &Sample, crop: u32, rng: &mut Rng) -> (RgbImage, Vec<Detection
             .map(|b| b.scaled_shifted(1.0, -(x as f32), -(y as f32)))
             .collect()
     };
-    let (mut boxes, mut ignore) = (shift(&s.boxes), shift(&s.ignore));
+    let mut ignore = shift(&s.ignore);
+    if !faint_as_water {
+        ignore.extend(shift(&s.faint));
+    }
+    let mut boxes = shift(&s.boxes);
     if rng.next() & 1 == 1 {
         image::imageops::flip_horizontal_in_place(&mut img);
         let c = crop as f32;
@@ -485,7 +504,7 @@ pub fn train(
         let (mut x, mut ht, mut bt, mut mk, mut wt) = (vec![], vec![], vec![], vec![], vec![]);
         for _ in 0..b {
             let s = &data.train[rng.below(data.train.len() as u64) as usize];
-            let (img, boxes, ignore) = random_crop(s, cfg.crop, &mut rng);
+            let (img, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, &mut rng);
             x.extend(to_chw(&img));
             let t = targets(&boxes, &ignore, cfg.crop);
             ht.extend(t.heat);
@@ -712,7 +731,7 @@ pub fn evaluate(
         scores.push(d.iter().map(|x| x.score).collect::<Vec<f32>>());
         dets.push(d);
         truth.push(s.boxes.clone());
-        ignore.push(s.ignore.clone());
+        ignore.push([s.ignore.as_slice(), &s.faint].concat());
     }
     let (chosen, clip_error_by_conf) = choose_conf(samples, &scores);
     let conf = conf.unwrap_or(chosen);
@@ -792,6 +811,7 @@ mod tests {
             image: RgbImage::new(8, 8),
             boxes: vec![Detection::from_centre(4.0, 4.0, 2.0, 2.0, 1.0); n],
             ignore: vec![],
+            faint: vec![],
             clip: clip.into(),
         };
         let samples = [sample(2, "a"), sample(4, "a"), sample(2, "b")];
@@ -805,6 +825,25 @@ mod tests {
         let clips = clip_counts(&samples, &scores, 0.45);
         assert_eq!((clips[0].truth_max, clips[0].estimate), (4, 3));
         assert_eq!((clips[1].truth_max, clips[1].estimate), (2, 1));
+    }
+
+    /// A 16-px frame cropped whole (no room to move): a labelled fish, a
+    /// sub-2-px one (ignored) and a faint one. The faint fish joins the
+    /// ignored unless it is trained as water; the labelled one always stays.
+    #[test]
+    fn faint_fish_are_ignored_or_water() {
+        let at = |x: f32| Detection::from_centre(x, 8.0, 4.0, 4.0, 1.0);
+        let s = Sample {
+            image: RgbImage::new(16, 16),
+            boxes: vec![at(4.0)],
+            ignore: vec![Detection::from_centre(8.0, 8.0, 1.0, 1.0, 1.0)],
+            faint: vec![at(12.0)],
+            clip: "c".into(),
+        };
+        for (water, ignored) in [(false, 2), (true, 1)] {
+            let (_, boxes, ignore) = random_crop(&s, 16, water, &mut Rng(3));
+            assert_eq!((boxes.len(), ignore.len()), (1, ignored), "water {water}");
+        }
     }
 
     /// One 16 × 8 fish centred at (20, 12) in a 32-px crop (grid 4 × 4):
