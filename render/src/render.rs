@@ -15,8 +15,13 @@
 //!    wall, the net bottom or the surface (Snell's window, total internal
 //!    reflection outside it). Then `L·exp(−c·t) + in-scatter` (see
 //!    [`crate::optics`]), auto exposure, tone curve, sRGB.
-//!    Fish pixels are shaded a second time as if the fish were not there; the
-//!    largest channel difference is the pixel's contrast.
+//!    What every pixel shows without fish (the background) depends only on
+//!    the camera and the conditions, so it is computed once for them and
+//!    kept ([`Renderer::background`]): a clip's frames share it while its
+//!    light does not change (`ClipSetup::conditions` holds the light for
+//!    [`crate::setup::LIGHT_STEP_SECONDS`]). Only fish pixels are shaded
+//!    per frame; the largest channel difference between a fish pixel and
+//!    the background there is the pixel's contrast.
 //! 4. Labels from the id buffer: visible pixels, visible 2D box and mean
 //!    contrast per fish; a fish with visible pixels and enough contrast is
 //!    detectable (labelled for detectors).
@@ -34,6 +39,7 @@ use crate::optics::{Light, N_WATER, Water, fresnel_air_water};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::sync::{Arc, Mutex};
 
 /// Rendering options; every field has a documented default.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -78,7 +84,7 @@ impl Default for RenderConfig {
 }
 
 /// Light and water of one frame.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Conditions {
     pub light: Light,
     /// The same place at solar noon (the auto exposure's reference).
@@ -180,6 +186,27 @@ pub struct Renderer {
     pub config: RenderConfig,
     pub meshes: Vec<FishMesh>,
     pub faces: Vec<Face>,
+    background: BackgroundCache,
+}
+
+/// The image without fish (sRGB after exposure) for one camera and one set
+/// of conditions.
+#[derive(Debug)]
+pub struct Background {
+    camera: Camera,
+    cond: Conditions,
+    /// 3 bytes per pixel, row-major.
+    pub rgb: Vec<u8>,
+}
+
+/// The newest [`Background`]; a clone of the renderer starts empty.
+#[derive(Debug, Default)]
+struct BackgroundCache(Mutex<Option<Arc<Background>>>);
+
+impl Clone for BackgroundCache {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
 }
 
 /// One fish rasterised alone.
@@ -219,7 +246,36 @@ impl Renderer {
             config,
             meshes,
             faces,
+            background: BackgroundCache::default(),
         }
+    }
+
+    /// The image without fish for `camera` under `cond`: the one kept if it
+    /// was made for them, else made now (every pixel's ray to the net or the
+    /// surface, rows in parallel) and kept instead.
+    pub fn background(&self, camera: &Camera, cond: &Conditions) -> Arc<Background> {
+        let mut kept = self.background.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(b) = kept
+            .as_ref()
+            .filter(|b| b.camera == *camera && b.cond == *cond)
+        {
+            return b.clone();
+        }
+        let (w, gain) = (camera.width as usize, self.gain(camera, cond));
+        let mut rgb = vec![0u8; w * camera.height as usize * 3];
+        rgb.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
+            for x in 0..w {
+                let c = self.pixel(camera, cond, x, y, f32::INFINITY, Vec3::ZERO, false);
+                row[3 * x..3 * x + 3].copy_from_slice(&tone(c * gain));
+            }
+        });
+        let b = Arc::new(Background {
+            camera: *camera,
+            cond: *cond,
+            rgb,
+        });
+        *kept = Some(b.clone());
+        b
     }
 
     /// The cage faces of `cage` (walls, bottom, surface).
@@ -282,25 +338,22 @@ impl Renderer {
                     }
                 }
             });
-        // 3. Water and light per pixel; for fish pixels also the water behind
-        // the fish, for its contrast (largest channel difference, 0–255).
+        // 3. The background, then the fish pixels' water and light, and their
+        // contrast against the background (largest channel difference, 0–255).
         let gain = self.gain(camera, cond);
-        let mut rgb = vec![0u8; w * h * 3];
+        let background = self.background(camera, cond);
+        let mut rgb = background.rgb.clone();
         let mut contrast = vec![0u8; w * h];
         rgb.par_chunks_mut(w * 3)
             .zip(contrast.par_chunks_mut(w))
             .enumerate()
             .for_each(|(y, (row, crow))| {
-                for x in 0..w {
+                for x in (0..w).filter(|x| ids[y * w + x] != 0) {
                     let k = y * w + x;
-                    let is_fish = ids[k] != 0;
-                    let c = self.pixel(camera, cond, x, y, depth[k], shade[k], is_fish);
+                    let c = self.pixel(camera, cond, x, y, depth[k], shade[k], true);
                     let out = tone(c * gain);
-                    if is_fish {
-                        let bg = self.pixel(camera, cond, x, y, f32::INFINITY, Vec3::ZERO, false);
-                        let bg = tone(bg * gain);
-                        crow[x] = (0..3).map(|j| out[j].abs_diff(bg[j])).max().unwrap_or(0);
-                    }
+                    let bg = &row[3 * x..3 * x + 3];
+                    crow[x] = (0..3).map(|j| out[j].abs_diff(bg[j])).max().unwrap_or(0);
                     row[3 * x..3 * x + 3].copy_from_slice(&out);
                 }
             });

@@ -355,17 +355,25 @@ impl ClipParams {
         s
     }
 
-    /// Light and water at local time `hours`.
+    /// Light and water at local time `hours`, the light as it was at the
+    /// start of its [`LIGHT_STEP_SECONDS`] step of the clock, so the frames
+    /// of a step share one background image (`Renderer::background`).
     pub fn conditions(&self, scene: &Scene, hours: f64, scattering: bool) -> Conditions {
         let place = site_place(scene);
         let (y, m, d) = (self.year, self.month, self.day);
+        let step = LIGHT_STEP_SECONDS / 3600.0;
         Conditions {
-            light: Light::new(place, y, m, d, hours),
+            light: Light::new(place, y, m, d, (hours / step).floor() * step),
             noon: Light::new(place, y, m, d, place.solar_noon_hours(y, m, d)),
             water: Water::new(self.water, scattering),
         }
     }
 }
+
+/// How long the light is held (simulated seconds): the sun moves 0.04° in
+/// that time, invisible in a frame, while a clip's frames within one step
+/// share one background image instead of shading every pixel again.
+pub const LIGHT_STEP_SECONDS: f64 = 10.0;
 
 /// Chlorophyll, sediment and particles drawn as `lo + (hi − lo)·u^skew`,
 /// again until the extinction at 550 nm lies in `r.extinction_550`.

@@ -488,3 +488,73 @@ fn validation_clips_are_whole_clips_spread_evenly() {
     assert_eq!(Split::of_clip(0, 2, 0.2), Split::Train);
     assert!((0..7).all(|c| Split::of_clip(c, 7, 0.0) == Split::Train));
 }
+
+/// The background is made once per camera and conditions: a second frame
+/// under the same ones reuses it, other conditions make a new one, and every
+/// frame is what a fresh renderer draws (pixels and labels), with the fish
+/// where it is now.
+#[test]
+fn the_background_is_kept_per_camera_and_conditions() {
+    let r = renderer();
+    let cam = side_camera(90.0, 160, 90);
+    let f = |x: f32| fish_at(Vec3::new(x, -2.0, 1.0), Vec3::X, 0.5);
+    let (noon, evening) = (conditions(11.5), conditions(17.0));
+    let kept = r.background(&cam, &noon);
+    let first = r.render(&[f(0.0)], &cam, &noon);
+    let moved = r.render(&[f(0.3)], &cam, &noon);
+    assert!(std::sync::Arc::ptr_eq(&kept, &r.background(&cam, &noon)));
+    let later = r.render(&[f(0.0)], &cam, &evening);
+    assert!(!std::sync::Arc::ptr_eq(
+        &kept,
+        &r.background(&cam, &evening)
+    ));
+    assert_ne!(first.rgb, moved.rgb, "the fish moved");
+    for (frame, x, cond) in [
+        (&first, 0.0, noon),
+        (&moved, 0.3, noon),
+        (&later, 0.0, evening),
+    ] {
+        let fresh = renderer().render(&[f(x)], &cam, &cond);
+        assert_eq!(frame.rgb, fresh.rgb);
+        assert_eq!(frame.fish, fresh.fish);
+    }
+    // Where no fish is, the frame is its background; the fish is not.
+    let bg = &r.background(&cam, &evening).rgb;
+    let fish_px = |k: usize| later.ids[k] != 0;
+    assert!(
+        (0..later.ids.len())
+            .all(|k| fish_px(k) || later.rgb[3 * k..3 * k + 3] == bg[3 * k..3 * k + 3])
+    );
+    assert!(
+        (0..later.ids.len())
+            .any(|k| fish_px(k) && later.rgb[3 * k..3 * k + 3] != bg[3 * k..3 * k + 3])
+    );
+}
+
+/// A clip's light is held for `LIGHT_STEP_SECONDS` (10 s) of the clock:
+/// 1 s and 6 s past 10:00 share it, 11 s past is the next step's; the
+/// water does not change.
+#[test]
+fn the_light_is_held_for_a_step() {
+    use deepfoids_render::setup::LIGHT_STEP_SECONDS;
+    use deepfoids_render::{CameraKind, ClipParams, RandomRanges};
+    assert_eq!(LIGHT_STEP_SECONDS, 10.0);
+    let dirs = deepfoids_env::ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
+    let scene =
+        deepfoids_env::Scene::load(&dirs, "coho_default", deepfoids_env::Phase::Pretrain).unwrap();
+    let c = ClipParams::random(&scene, 0, 7, CameraKind::Side, &RandomRanges::default()).unwrap();
+    let at = |s: f64| c.conditions(&scene, 10.0 + s / 3600.0, true);
+    assert_eq!(at(1.0), at(6.0));
+    assert_ne!(at(1.0).light, at(11.0).light);
+    assert_eq!(at(1.0).water, at(11.0).water);
+    assert_eq!(
+        at(1.0).light,
+        Light::new(
+            deepfoids_render::setup::site_place(&scene),
+            c.year,
+            c.month,
+            c.day,
+            10.0
+        )
+    );
+}
