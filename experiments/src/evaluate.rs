@@ -1,7 +1,7 @@
 //! Evaluating a school and writing what `eval` reports: `metrics.csv`,
 //! `summary.json`, and the P/M, depth and trajectory plots.
 
-use crate::plot::{FONT, draw_legend, legend_line, pe, save_png};
+use crate::plot::{FONT, caption_size, draw_legend, legend_line, pe, save_png};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
 use deepfoids_env::policy::{act_and_step, action_buffers};
@@ -268,7 +268,7 @@ fn plot_pm(path: &Path, eval: &Evaluation, s: &Summary, title: &str) -> Result<(
                     .map_or(0.0, |x| x.1)
         );
         let mut chart = ChartBuilder::on(root)
-            .caption(caption, (FONT, 20))
+            .caption(&caption, (FONT, caption_size(root, &caption, 20.0)))
             .margin(12)
             .x_label_area_size(45)
             .y_label_area_size(55)
@@ -326,8 +326,9 @@ fn plot_depth(path: &Path, s: &Summary, height: f32, title: &str) -> Result<()> 
         * 1.1;
     save_png(path, 800, 700, |root| {
         root.fill(&WHITE).map_err(pe)?;
+        let caption = format!("{title} — depth distribution");
         let mut chart = ChartBuilder::on(root)
-            .caption(format!("{title} — depth distribution"), (FONT, 18))
+            .caption(&caption, (FONT, caption_size(root, &caption, 18.0)))
             .margin(12)
             .x_label_area_size(45)
             .y_label_area_size(55)
@@ -383,14 +384,12 @@ fn plot_tracks(path: &Path, env: &Env, eval: &Evaluation, title: &str) -> Result
         * 3.0;
     save_png(path, 760, 800, |root| {
         root.fill(&WHITE).map_err(pe)?;
+        let caption = format!(
+            "{title} — top view, last {:.0} s (breaks = respawns)",
+            TRACK_SECONDS.min(t_end)
+        );
         let mut chart = ChartBuilder::on(root)
-            .caption(
-                format!(
-                    "{title} — top view, last {:.0} s (breaks = respawns)",
-                    TRACK_SECONDS.min(t_end)
-                ),
-                (FONT, 17),
-            )
+            .caption(&caption, (FONT, caption_size(root, &caption, 17.0)))
             .margin(12)
             .x_label_area_size(45)
             .y_label_area_size(55)

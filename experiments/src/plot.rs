@@ -22,6 +22,25 @@ pub fn init_fonts() {
     });
 }
 
+/// The caption's font size: `size`, or smaller so that `text` fits across
+/// `area` with a 12-px margin each side (a long run id was cut off at both
+/// ends of `trajectories.png`); never under 9.
+pub fn caption_size<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    text: &str,
+    size: f64,
+) -> f64 {
+    let room = area.dim_in_pixel().0 as f64 - 24.0;
+    let width = area
+        .estimate_text_size(text, &(FONT, size).into_text_style(area))
+        .map_or(0.0, |(w, _)| w as f64);
+    if width > room {
+        (size * room / width).floor().max(9.0)
+    } else {
+        size
+    }
+}
+
 /// Draw into an in-memory RGB bitmap and return it encoded as PNG.
 pub fn render_png(
     width: u32,
@@ -87,4 +106,29 @@ pub fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTransl
         .label_font((FONT, size))
         .draw()
         .map_err(pe)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A short caption keeps its size; one twice as wide as a 300-px area
+    /// shrinks to about half and then fits; nothing goes under 9.
+    #[test]
+    fn captions_shrink_to_fit() {
+        init_fonts();
+        let mut rgb = vec![0u8; 300 * 20 * 3];
+        let root = BitMapBackend::with_buffer(&mut rgb, (300, 20)).into_drawing_area();
+        assert_eq!(caption_size(&root, "P and M", 18.0), 18.0);
+        let long = "coho_default · bounce_budget_space20-thesis-pre (ppo) · seed 11";
+        let size = caption_size(&root, long, 18.0);
+        let width = |s: f64| {
+            root.estimate_text_size(long, &(FONT, s).into_text_style(&root))
+                .unwrap()
+                .0
+        };
+        assert!(width(18.0) > 276 && size < 18.0 && size >= 9.0, "{size}");
+        assert!(width(size) <= 276, "{}", width(size));
+        assert_eq!(caption_size(&root, &long.repeat(10), 18.0), 9.0);
+    }
 }
