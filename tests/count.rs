@@ -197,8 +197,9 @@ fn detector_trains_and_counts_end_to_end() {
 
 /// The shipped detector (`detectors/fish.onnx`), taken when no --detector is
 /// given, on a clear 640-px bottom-fisheye frame of `seabream_50` (seed 4; the
-/// renderer counts 50 fish visible): 56 when it was shipped (confidence 0.3,
-/// from its card), 49 since `count` takes the whole view's local contrast.
+/// renderer counts 50 fish visible): the session-30 detector counted 56 (confidence 0.3,
+/// from its card), 49 once `count` took the whole view's local contrast; the
+/// session-31 one (faint fish trained as water) counts 42.
 /// Between 40 and 62 (±20 % of the visible) passes; a detector that stops seeing fish, or sees them everywhere, does not.
 #[test]
 fn the_shipped_detector_counts_a_clear_school() {

@@ -64,7 +64,8 @@ pub struct TrainConfig {
     pub max_frames: usize,
     /// Train the fish the renderer found too faint to label as water
     /// (negatives), so the detector learns the labels' idea of visible;
-    /// otherwise they are ignored (neither positives nor negatives); false.
+    /// otherwise they are ignored (neither positives nor negatives); true
+    /// (on held-out clips the count error fell from 30.5 to 8.2 fish a frame).
     pub faint_as_water: bool,
 }
 
@@ -80,7 +81,7 @@ impl Default for TrainConfig {
             seed: 0,
             count: CountConfig::default(),
             max_frames: 0,
-            faint_as_water: false,
+            faint_as_water: true,
         }
     }
 }

@@ -127,7 +127,7 @@ mod tests {
                 .unwrap()
                 .0
         };
-        assert!(width(18.0) > 276 && size < 18.0 && size >= 9.0, "{size}");
+        assert!(width(18.0) > 276 && (9.0..18.0).contains(&size), "{size}");
         assert!(width(size) <= 276, "{}", width(size));
         assert_eq!(caption_size(&root, &long.repeat(10), 18.0), 9.0);
     }

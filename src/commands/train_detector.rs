@@ -45,9 +45,9 @@ pub struct TrainDetectorArgs {
     /// Use at most this many training frames (0: all)
     #[arg(value_parser = whole::<usize>, long, default_value_t = 0)]
     pub max_frames: usize,
-    /// Train the fish too faint for the renderer to label as water (negatives) instead of ignoring them
+    /// Ignore the fish too faint for the renderer to label (neither fish nor water) instead of training them as water
     #[arg(long)]
-    pub faint_as_water: bool,
+    pub ignore_faint: bool,
     /// No progress lines
     #[arg(long)]
     pub quiet: bool,
@@ -69,7 +69,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         base: args.base,
         seed: args.seed,
         max_frames: args.max_frames,
-        faint_as_water: args.faint_as_water,
+        faint_as_water: !args.ignore_faint,
         ..TrainConfig::default()
     };
     cfg.count.view_fov_deg = args.view_fov;
