@@ -8,13 +8,18 @@ use crate::logger::Scalars;
 use deepfoids_env::metrics::order_parameters;
 use deepfoids_env::{BehaviourBatch, N_TERMS, StepOutput, TERM_NAMES};
 
+/// The index of r_BC (the net collision) among the reward terms.
+const R_BC: usize = 0;
+
 /// Sums since the last log point.
 #[derive(Clone, Default)]
 struct Window {
     decisions: u64,
     reward: f64,
     terms: [f64; N_TERMS],
-    terminations: u64,
+    /// Decisions that paid r_BC: the fish hit the net, whether that ended
+    /// its episode or bounced it back (`boundary_ends_episode = false`).
+    boundary_collisions: u64,
     episodes: u64,
     episode_return: f64,
     episode_return_sq: f64,
@@ -31,7 +36,7 @@ impl Window {
         for (a, b) in self.terms.iter_mut().zip(&o.terms) {
             *a += b;
         }
-        self.terminations += o.terminations;
+        self.boundary_collisions += o.boundary_collisions;
         self.episodes += o.episodes;
         self.episode_return += o.episode_return;
         self.episode_return_sq += o.episode_return_sq;
@@ -103,7 +108,7 @@ impl EpisodeStats {
             for (t, v) in batch.terms[a].iter().enumerate() {
                 w.terms[t] += *v as f64;
             }
-            w.terminations += term as u64;
+            w.boundary_collisions += (batch.terms[a][R_BC] != 0.0) as u64;
         }
         let idx: Vec<usize> = (self.first..self.first + batch.n_agents).collect();
         let (p, m) = order_parameters(&out.fish.position, &out.fish.heading, Some(&idx));
@@ -134,7 +139,7 @@ impl EpisodeStats {
         out.put("Environment/Reward per Decision", w.reward / dec)?;
         out.put(
             "Environment/Boundary Collisions per Decision",
-            w.terminations as f64 / dec,
+            w.boundary_collisions as f64 / dec,
         )?;
         for (t, name) in TERM_NAMES.iter().enumerate() {
             out.put(&format!("Reward/{name}"), w.terms[t] / dec)?;
@@ -166,5 +171,16 @@ impl EpisodeStats {
             p: w.p / pm,
             m: w.m / pm,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Boundary collisions are read off r_BC's place among the terms.
+    #[test]
+    fn r_bc_is_the_boundary_collision_term() {
+        assert_eq!(TERM_NAMES[R_BC], "boundary_collision");
     }
 }
