@@ -189,8 +189,17 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
     if y < 0.0 { -r } else { r }
 }
 
+/// The bits `lo..=hi` of a row's column mask (none when `lo > hi`).
+fn columns_mask((lo, hi): (usize, usize)) -> u64 {
+    if lo > hi {
+        0
+    } else {
+        (u64::MAX >> (63 - hi)) & (u64::MAX << lo)
+    }
+}
+
 /// Spheres set up together by [`Frame::add_spheres`].
-pub const SPHERE_BATCH: usize = 64;
+pub const SPHERE_BATCH: usize = 256;
 
 /// Up to [`SPHERE_BATCH`] spheres (relative centre in the local frame, radius,
 /// kind), structure of arrays. Lives on the stack.
@@ -284,9 +293,11 @@ impl Frame {
         self.add_spheres(sensor, &batch);
     }
 
-    /// Spheres (neighbours) in the local frame, in order; each covers the cells
-    /// whose centre direction lies within its angular radius `asin(r/d)` and the
-    /// cell its centre falls in, at its centre distance `d`.
+    /// Spheres (neighbours) in the local frame; each covers the cells whose
+    /// centre direction lies within its angular radius `asin(r/d)` and the
+    /// cell its centre falls in, at its centre distance `d`. A cell keeps the
+    /// nearest object (the first of equals), so the order of the spheres does
+    /// not change the frame.
     ///
     /// Candidate cells come from bounds that need no trigonometry but one
     /// polynomial `atan2`: with `y = sin el`, `s = sin α = r/d`, `c = cos α`,
@@ -294,6 +305,12 @@ impl Frame {
     /// row edges' sines) and `asin(x) ≤ x / √(1 − x²)`, `x = s / cos el_max`,
     /// bounds the azimuth half-width; every candidate is then tested exactly.
     /// The set-up runs as loops over the whole batch, which vectorise.
+    ///
+    /// The spheres are then drawn nearest first, and a bit per cell marks the
+    /// cells a sphere of this batch has taken: such a cell holds a distance no
+    /// greater than any later sphere's, so it is skipped without a test. In a
+    /// dense school the nearest few neighbours cover most of what the far ones
+    /// would, and the far ones cost little more than their set-up.
     pub fn add_spheres(&mut self, sensor: &GridSensor, batch: &SphereBatch) {
         let n = batch.len;
         let range2 = self.range * self.range;
@@ -309,14 +326,20 @@ impl Frame {
             [0f32; SPHERE_BATCH],
         );
         let (mut sin_hi, mut sin_lo) = ([0f32; SPHERE_BATCH], [0f32; SPHERE_BATCH]);
-        let mut valid = [false; SPHERE_BATCH];
+        // Nearest first: the distance's bits (positive floats order as their
+        // bits) above the index, so equal distances keep the batch's order.
+        let mut order = [0u64; SPHERE_BATCH];
+        let mut valid = 0;
         for i in 0..n {
             let d2 = batch.x[i] * batch.x[i] + batch.y[i] * batch.y[i] + batch.z[i] * batch.z[i];
-            valid[i] = d2 < range2 && d2 > 1e-12;
             let di = d2.max(1e-12).sqrt();
             let inv = 1.0 / di;
             d[i] = di;
             (ux[i], uy[i], uz[i]) = (batch.x[i] * inv, batch.y[i] * inv, batch.z[i] * inv);
+            if d2 < range2 && d2 > 1e-12 {
+                order[valid] = (u64::from(di.to_bits()) << 32) | i as u64;
+                valid += 1;
+            }
         }
         for i in 0..n {
             az[i] = fast_atan2(-ux[i], uz[i]);
@@ -364,21 +387,25 @@ impl Frame {
                 row_lo[i] += (sin_lo[i] < edge) as u8;
             }
         }
+        let order = &mut order[..valid];
+        order.sort_unstable();
         let limit = AZ_LIMIT_DEG.to_radians();
         let step_az = AZ_STEP_DEG.to_radians();
         let col = |a: f32| ((a + limit) / step_az).clamp(0.0, (AZ_CELLS - 1) as f32) as usize;
         let none = (1, 0);
-        for i in 0..n {
-            if !valid[i] {
-                continue;
-            }
+        // Bit `w` of `taken[h]`: cell (h, w) holds a sphere of this batch.
+        let mut taken = [0u64; EL_CELLS];
+        for &key in order.iter() {
+            let i = (key & 0xffff_ffff) as usize;
             let (di, k) = (d[i], batch.kind[i]);
             // The cell the centre falls in.
             if az[i].abs() < limit {
-                let c = (row_c[i] as usize).min(EL_CELLS - 1) * AZ_CELLS + col(az[i]);
+                let (h, w) = ((row_c[i] as usize).min(EL_CELLS - 1), col(az[i]));
+                let c = h * AZ_CELLS + w;
                 if di < self.dist[c] {
                     self.dist[c] = di;
                     self.kind[c] = k;
+                    taken[h] |= 1 << w;
                 }
             }
             let h_lo = (row_hi[i] as usize).min(EL_CELLS - 1);
@@ -408,17 +435,19 @@ impl Frame {
                 };
                 (main, wrapped)
             };
+            let columns = columns_mask(main) | columns_mask(wrapped);
             let (dx, dy, dz, c) = (ux[i], uy[i], uz[i], cos_a[i]);
-            for (w_lo, w_hi) in [main, wrapped] {
-                for h in h_lo..=h_hi {
-                    let row = h * AZ_CELLS;
-                    for cell in row + w_lo..row + w_hi + 1 {
-                        let cos =
-                            sensor.dx[cell] * dx + sensor.dy[cell] * dy + sensor.dz[cell] * dz;
-                        // Branch-free: which cells a neighbour covers is unpredictable.
-                        let take = (cos >= c) & (di < self.dist[cell]);
-                        self.dist[cell] = if take { di } else { self.dist[cell] };
-                        self.kind[cell] = if take { k } else { self.kind[cell] };
+            for (h, taken) in taken.iter_mut().enumerate().take(h_hi + 1).skip(h_lo) {
+                let mut todo = columns & !*taken;
+                while todo != 0 {
+                    let w = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let cell = h * AZ_CELLS + w;
+                    let cos = sensor.dx[cell] * dx + sensor.dy[cell] * dy + sensor.dz[cell] * dz;
+                    if cos >= c && di < self.dist[cell] {
+                        self.dist[cell] = di;
+                        self.kind[cell] = k;
+                        *taken |= 1 << w;
                     }
                 }
             }
@@ -703,6 +732,45 @@ mod tests {
             (stack[0], stack[FRAME_LEN], stack[2 * FRAME_LEN]),
             (0.0, 0.0, 9.0)
         );
+    }
+
+    /// Drawn nearest first, a batch still gives each cell the nearest sphere
+    /// and, between spheres at the same distance, the first in the batch.
+    #[test]
+    fn the_nearest_and_then_the_first_sphere_wins() {
+        let sensor = GridSensor::new();
+        let ahead = Vec3::new(0.0, 0.0, 1.0);
+        let draw = |spheres: &[(Vec3, f32, SeenKind)]| {
+            let mut batch = SphereBatch::new();
+            for &(rel, r, kind) in spheres {
+                batch.push(rel, r, kind);
+            }
+            let mut f = Frame::new(3.0);
+            f.add_spheres(&sensor, &batch);
+            f
+        };
+        let (h, w) = sensor.cell_of(ahead).unwrap();
+        // A far large sphere first, a near small one after: the centre cell is the near one's.
+        let f = draw(&[
+            (ahead * 2.0, 1.5, SeenKind::Fish),
+            (ahead * 0.5, 0.05, SeenKind::ChasePartner),
+        ]);
+        assert_eq!(f.kind_at(h, w), Some(SeenKind::ChasePartner));
+        assert_eq!(f.dist[h * AZ_CELLS + w], 0.5);
+        // The far one still covers the cells around it.
+        assert_eq!(f.kind_at(h, w + 2), Some(SeenKind::Fish));
+        // Two spheres at one place: the first in the batch wins, in either order.
+        for (first, second) in [
+            (SeenKind::Fish, SeenKind::ChasePartner),
+            (SeenKind::ChasePartner, SeenKind::Fish),
+        ] {
+            let f = draw(&[(ahead, 0.3, first), (ahead, 0.3, second)]);
+            assert!(
+                covered(&f)
+                    .iter()
+                    .all(|&(h, w)| f.kind_at(h, w) == Some(first))
+            );
+        }
     }
 
     /// The bounded search marks exactly the cells a brute-force test of all
