@@ -71,7 +71,7 @@ use crate::physics::Physics;
 use crate::reward::{Outcome, Rewards};
 use crate::rng::{Purpose, Stream};
 use crate::scene::Scene;
-use crate::sensing::Sensing;
+use crate::sensing::{Neighbour, Sensing, gather_neighbours};
 use crate::state::State;
 use crate::sun::SunPlace;
 use crate::traits::{self, FishParams, Traits};
@@ -202,6 +202,8 @@ enum Mode {
 struct Scratch {
     /// Neighbours for sensing (cells of half the largest sensing range).
     sense_grid: SpatialGrid,
+    /// What sensing reads of each fish, in `sense_grid`'s entry order.
+    neighbours: Vec<Neighbour>,
     /// Neighbours for contacts (cells of the largest collider).
     contact_grid: SpatialGrid,
     /// Repulsion of each fish at the current physics step (m).
@@ -244,7 +246,12 @@ impl Model {
     }
 
     /// The sensing stage's view of `world` with neighbours in `grid`.
-    fn sensing<'a>(&'a self, world: &'a World, grid: &'a SpatialGrid) -> Sensing<'a> {
+    fn sensing<'a>(
+        &'a self,
+        world: &'a World,
+        grid: &'a SpatialGrid,
+        neighbours: &'a [Neighbour],
+    ) -> Sensing<'a> {
         Sensing {
             world,
             traits: &self.traits,
@@ -252,6 +259,7 @@ impl Model {
             obstacles: &self.obstacles,
             sensor: &self.sensor,
             grid,
+            neighbours,
             cage_height: self.cage.height,
             neighbour_cap: self.scene.rewards.neighbour_cap as usize,
             extensions: self.scene.rewards.extensions,
@@ -322,6 +330,7 @@ impl Env {
         let scratch = Scratch {
             // Half-range cells visit ~40 % fewer candidates than full-range ones.
             sense_grid: SpatialGrid::new(lo, hi, max_sense / 2.0, n),
+            neighbours: vec![Neighbour::default(); n],
             contact_grid: SpatialGrid::new(lo, hi, 2.0 * traits.max_bound, n),
             correction: vec![Vec3::ZERO; n],
             outcome: vec![Outcome::default(); n],
@@ -591,9 +600,15 @@ impl Env {
         if mode == Mode::Decision && self.model.scene.clock.runs {
             self.update_light();
         }
-        self.scratch
+        let scratch = &mut self.scratch;
+        scratch
             .sense_grid
             .rebuild(&self.state.world.position, &self.model.traits.visual);
+        gather_neighbours(
+            &self.state.world,
+            &scratch.sense_grid,
+            &mut scratch.neighbours,
+        );
         for (b, info) in self.model.info.iter().enumerate() {
             self.scratch.deciding[b] =
                 mode != Mode::Decision || self.state.tick.is_multiple_of(info.period_ticks);
@@ -601,7 +616,11 @@ impl Env {
         let t0 = std::time::Instant::now();
         let phys = &self.model.scene.physics;
         let m = &self.model;
-        let sensing = m.sensing(&self.state.world, &self.scratch.sense_grid);
+        let sensing = m.sensing(
+            &self.state.world,
+            &self.scratch.sense_grid,
+            &self.scratch.neighbours,
+        );
         let rewards = Rewards {
             world: &self.state.world,
             since: &self.state.since,
@@ -690,7 +709,18 @@ impl Env {
                 &mut self.scratch.changed,
             );
             // Fish whose chase partner changed see and know it at once: redo their newest frame.
-            let sensing = m.sensing(&self.state.world, &self.scratch.sense_grid);
+            if !self.scratch.changed.is_empty() {
+                gather_neighbours(
+                    &self.state.world,
+                    &self.scratch.sense_grid,
+                    &mut self.scratch.neighbours,
+                );
+            }
+            let sensing = m.sensing(
+                &self.state.world,
+                &self.scratch.sense_grid,
+                &self.scratch.neighbours,
+            );
             for &i in &self.scratch.changed {
                 let i = i as usize;
                 let b = self.state.world.behaviour[i] as usize;

@@ -103,12 +103,33 @@ impl SpatialGrid {
         self.cell_start[0] = 0;
     }
 
+    /// The items in the order the queries visit them (each cell's items
+    /// together): `entries()[slot]` is the item at `slot`. Data the caller
+    /// reads for each candidate can be laid out in this order
+    /// ([`SpatialGrid::for_each_candidate_slot`]), so a query reads it
+    /// contiguously instead of at scattered item indices.
+    pub fn entries(&self) -> &[u32] {
+        &self.entries
+    }
+
     /// Calls `f(j)` for every item filed in a cell that intersects the ball of
     /// `radius` around `p` — a superset of the items within `radius`; callers
     /// check the exact distance. Rows of cells are clipped to the ball's
     /// cross-section, so about half the candidates of the bounding cube are visited.
     #[inline]
     pub fn for_each_candidate(&self, p: Vec3, radius: f32, mut f: impl FnMut(usize, Vec4)) {
+        self.for_each_candidate_slot(p, radius, |_, j, q| f(j, q));
+    }
+
+    /// [`SpatialGrid::for_each_candidate`], also giving each candidate's slot
+    /// in [`SpatialGrid::entries`]: `f(slot, j, q)`.
+    #[inline]
+    pub fn for_each_candidate_slot(
+        &self,
+        p: Vec3,
+        radius: f32,
+        mut f: impl FnMut(usize, usize, Vec4),
+    ) {
         let lo = self.coord(p - Vec3::splat(radius));
         let hi = self.coord(p + Vec3::splat(radius));
         let r2 = radius * radius;
@@ -129,11 +150,12 @@ impl SpatialGrid {
                 let start = self.cell_start[row + x_lo] as usize;
                 let end = self.cell_start[row + x_hi + 1] as usize;
                 // Cells of one x-row are contiguous in `entries`.
-                for (&j, &q) in self.entries[start..end]
+                for (slot, (&j, &q)) in self.entries[start..end]
                     .iter()
                     .zip(&self.points[start..end])
+                    .enumerate()
                 {
-                    f(j as usize, q);
+                    f(start + slot, j as usize, q);
                 }
             }
         }
@@ -186,8 +208,9 @@ mod tests {
         for (i, &p) in pts.iter().enumerate().step_by(7) {
             let r = 0.9;
             let mut got = Vec::new();
-            grid.for_each_candidate(p, r, |j, q| {
+            grid.for_each_candidate_slot(p, r, |slot, j, q| {
                 assert_eq!(q, pts[j].extend(j as f32));
+                assert_eq!(grid.entries()[slot] as usize, j);
                 if j != i && pts[j].distance(p) < r {
                     got.push(j)
                 }
