@@ -158,6 +158,29 @@ pub struct BenchCountArgs {
     pub frames: usize,
 }
 
+/// What `bench count` sums over the timed frames of one pipeline.
+#[derive(Default)]
+struct Timing {
+    /// Seconds pre-processing (denoising, fisheye correction, local contrast).
+    preprocess: f64,
+    /// Seconds detecting, windows and NMS included.
+    detect: f64,
+    /// Fish counted, over all frames.
+    fish: usize,
+    /// Windows per frame.
+    windows: usize,
+}
+
+impl Timing {
+    fn frames_per_second(&self, frames: usize) -> f64 {
+        frames as f64 / (self.preprocess + self.detect)
+    }
+
+    fn fish_per_frame(&self, frames: usize) -> f64 {
+        self.fish as f64 / frames as f64
+    }
+}
+
 /// `deepfoids bench count`: frames per second of the whole pipeline, and
 /// its split. With our detector, also the graph as exported (its own local
 /// contrast pooled per window) on the same frames, interleaved, and the ratio.
@@ -182,19 +205,18 @@ pub fn bench(args: &BenchCountArgs) -> Result<()> {
         }
         None => None,
     };
-    // Seconds pre-processing, seconds detecting, fish, windows.
-    let time = |counter: &mut Counter, img, sums: &mut [f64; 4]| -> Result<()> {
-        let t = Instant::now();
+    let time = |counter: &mut Counter, img, t: &mut Timing| -> Result<()> {
+        let start = Instant::now();
         let view = counter.preprocess(img);
-        sums[0] += t.elapsed().as_secs_f64();
-        let t = Instant::now();
+        t.preprocess += start.elapsed().as_secs_f64();
+        let start = Instant::now();
         let (d, w) = counter.detect(&view)?;
-        sums[1] += t.elapsed().as_secs_f64();
-        sums[2] += d.len() as f64;
-        sums[3] = w as f64;
+        t.detect += start.elapsed().as_secs_f64();
+        t.fish += d.len();
+        t.windows = w;
         Ok(())
     };
-    let (mut ours, mut theirs) = ([0.0; 4], [0.0; 4]);
+    let (mut ours, mut theirs) = (Timing::default(), Timing::default());
     counter.frame(&imgs[0])?;
     if let Some(e) = exported.as_mut() {
         e.frame(&imgs[0])?;
@@ -205,23 +227,22 @@ pub fn bench(args: &BenchCountArgs) -> Result<()> {
             time(e, img, &mut theirs)?;
         }
     }
-    let n = (imgs.len() - 1) as f64;
+    let n = imgs.len() - 1;
     let (w, h) = imgs[0].dimensions();
     println!(
         "{w}×{h} {}, {} threads, {} windows per frame, detector {}: {:.1} fish per frame",
         args.opts.camera,
         rayon::current_num_threads(),
-        ours[3],
+        ours.windows,
         counter.detector.path.display(),
-        ours[2] / n
+        ours.fish_per_frame(n)
     );
-    let rate = |s: &[f64; 4]| n / (s[0] + s[1]);
-    let line = |what: &str, s: &[f64; 4]| {
+    let line = |what: &str, t: &Timing| {
         println!(
             "{what}{:.2} frames/s (pre-processing {:.0} ms, detection + NMS {:.0} ms per frame)",
-            rate(s),
-            1e3 * s[0] / n,
-            1e3 * s[1] / n
+            t.frames_per_second(n),
+            1e3 * t.preprocess / n as f64,
+            1e3 * t.detect / n as f64
         )
     };
     line("", &ours);
@@ -232,8 +253,8 @@ pub fn bench(args: &BenchCountArgs) -> Result<()> {
         );
         println!(
             "ratio {:.2}× ({:.1} fish per frame as exported)",
-            rate(&ours) / rate(&theirs),
-            theirs[2] / n
+            ours.frames_per_second(n) / theirs.frames_per_second(n),
+            theirs.fish_per_frame(n)
         );
     }
     Ok(())
