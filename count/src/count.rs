@@ -5,7 +5,7 @@ use crate::boxes::{Detection, cut_by_inner_edge, nms};
 use crate::detector::Detector;
 use crate::error::{CountError, Result};
 use crate::frames::Frames;
-use crate::preprocess::{InputCamera, PerspectiveView, local_contrast, median_blur};
+use crate::preprocess::{InputCamera, PerspectiveView, median_blur};
 use crate::windows::{crop, crop_planes, thesis_count, windows};
 use deepfoids_io::write_atomic;
 use image::RgbImage;
@@ -182,11 +182,7 @@ impl Counter {
         let (w, h) = view.dimensions();
         let wins = windows(w, h, c.window, c.step);
         // Our detector's local contrast, once for the whole view.
-        let planes = self
-            .detector
-            .cuts_local_contrast
-            .filter(|_| self.detector.input == c.window)
-            .map(|(k, eps)| local_contrast(view, k, eps));
+        let planes = self.detector.view_contrast(view, c.window);
         let per_window: Vec<Vec<Detection>> = wins
             .par_iter()
             .map(|&win| {

@@ -239,6 +239,17 @@ impl Detector {
         }
     }
 
+    /// The local contrast of a whole view, to cut `window`-pixel windows
+    /// from ([`crate::windows::crop_planes`]) instead of computing it per
+    /// window: `None` unless this detector's graph had its own local contrast
+    /// cut off and the windows reach the network at their own size (a window
+    /// resampled to the input needs the contrast of the resampled pixels).
+    pub fn view_contrast(&self, view: &RgbImage, window: u32) -> Option<Vec<f32>> {
+        self.cuts_local_contrast
+            .filter(|_| self.input == window)
+            .map(|(k, eps)| local_contrast(view, k, eps))
+    }
+
     /// Detections (input pixels) from a `[3, input, input]` network input
     /// ([`Detector::input_of`], or a window of a view's local contrast).
     pub fn detect_input(&self, chw: Vec<f32>, conf: f32) -> Result<Vec<Detection>> {
