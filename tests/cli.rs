@@ -70,6 +70,31 @@ fn simulate_writes_trajectories() {
     assert!(text(&o).contains("seabream_regular"));
 }
 
+/// With `bounce` a net collision pays r_BC (300) without ending the episode;
+/// the table's BC/fish·h counts those collisions, not episode ends: seabream
+/// decide every 0.1 s, so 36,000 decisions make a fish-hour and
+/// BC/fish·h = −r_BC per decision / 300 × 36,000.
+#[test]
+fn simulate_counts_collisions_that_do_not_end_the_episode() {
+    let out = temp("simulate-bounce");
+    let o = cli_ok(&format!(
+        "simulate --scene seabream_default --reward-profile bounce --seconds 20 --seed 4 --out {}",
+        out.display()
+    ));
+    let t = text(&o);
+    let row: Vec<f64> = t
+        .lines()
+        .find(|l| l.starts_with("seabream_regular") && l.contains("2000"))
+        .unwrap_or_else(|| panic!("no tally row:\n{t}"))
+        .split_whitespace()
+        .skip(1)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let (r_bc, bc) = (row[2], row[9]);
+    assert!(r_bc < 0.0, "random fish hit the net in 20 s:\n{t}");
+    assert!((bc - -r_bc / 300.0 * 36_000.0).abs() < 0.6, "{t}");
+}
+
 #[test]
 fn sensor_view_writes_a_png() {
     let dir = temp("view");

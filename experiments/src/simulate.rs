@@ -19,6 +19,9 @@ pub struct Tally {
     pub terms: [f64; N_TERMS],
     pub terminated: u64,
     pub truncated: u64,
+    /// Decisions whose fish crossed a wall since the previous one (whether or
+    /// not the profile ends the episode there).
+    pub boundary_collisions: u64,
     pub neighbour_collisions: u64,
 }
 
@@ -36,6 +39,7 @@ impl Tally {
             }
             self.terminated += batch.terminated[a] as u64;
             self.truncated += batch.truncated[a] as u64;
+            self.boundary_collisions += batch.crossed[a] as u64;
             self.neighbour_collisions += batch.new_collisions[a] as u64;
         }
     }

@@ -97,7 +97,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         let hours = count as f64 * env.output().time / 3600.0;
         println!(
             " {:>10.1} {:>10.1}",
-            t.terminated as f64 / hours.max(1e-12),
+            t.boundary_collisions as f64 / hours.max(1e-12),
             t.neighbour_collisions as f64 / hours.max(1e-12)
         );
     }
