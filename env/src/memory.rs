@@ -32,7 +32,8 @@ pub const MAX_SHARE: f64 = 0.8;
 /// from the sizes of its per-fish arrays: the batch's vector, reward, terms and
 /// flags (60), the copied fish state (35), the world (65), motor, episode
 /// accumulator, collider axes and extents, decision results and scratch (260),
-/// and both spatial grids' entries (48); 468 in all, but measured ≈ 590
+/// both spatial grids' entries (48) and what sensing gathers of each
+/// neighbour (20); 488 in all, but measured ≈ 590
 /// with the growth of per-fish vectors at 30,000 fish (`field_dense`).
 pub const FISH_STATE_BYTES: u64 = 640;
 
