@@ -17,8 +17,6 @@ pub struct Tally {
     pub decisions: u64,
     pub reward: f64,
     pub terms: [f64; N_TERMS],
-    pub terminated: u64,
-    pub truncated: u64,
     /// Decisions whose fish crossed a wall since the previous one (whether or
     /// not the profile ends the episode there).
     pub boundary_collisions: u64,
@@ -37,8 +35,6 @@ impl Tally {
             for (t, v) in batch.terms[a].iter().enumerate() {
                 self.terms[t] += *v as f64;
             }
-            self.terminated += batch.terminated[a] as u64;
-            self.truncated += batch.truncated[a] as u64;
             self.boundary_collisions += batch.crossed[a] as u64;
             self.neighbour_collisions += batch.new_collisions[a] as u64;
         }
