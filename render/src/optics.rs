@@ -289,6 +289,20 @@ impl Water {
     }
 }
 
+/// [`Light::inscatter`] once the ray's source `j0` (at the camera) and
+/// `x = c − K·v_y` are known: `j0·(1 − exp(−x·t))/x` per channel. Both
+/// depend on the ray alone, so a renderer keeps them per pixel.
+pub fn inscatter_along(j0: Vec3, x: Vec3, t: f32) -> Vec3 {
+    let f = |x: f32| {
+        if x.abs() < 1e-5 {
+            t
+        } else {
+            (1.0 - (-x * t).exp()) / x
+        }
+    };
+    j0 * Vec3::new(f(x.x), f(x.y), f(x.z))
+}
+
 /// The sun and sky of one frame, as they are below the surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
@@ -394,16 +408,7 @@ impl Light {
         if !water.scattering {
             return Vec3::ZERO;
         }
-        let j0 = self.source(water, d0, v);
-        let x = water.c - water.k * v.y;
-        let f = |x: f32| {
-            if x.abs() < 1e-5 {
-                t
-            } else {
-                (1.0 - (-x * t).exp()) / x
-            }
-        };
-        j0 * Vec3::new(f(x.x), f(x.y), f(x.z))
+        inscatter_along(self.source(water, d0, v), water.c - water.k * v.y, t)
     }
 
     /// What a camera at depth `d0` sees of a surface of radiance `l` at

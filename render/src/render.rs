@@ -5,23 +5,25 @@
 //! 1. Per fish (rayon over fish): transform its species' mesh (tail beat,
 //!    body length, pose), shade the vertices (Lambert from the refracted sun
 //!    plus the sky's diffuse light), project them, and rasterise the fish
-//!    alone into a small buffer over its screen box. That buffer is the fish's
-//!    unoccluded silhouette: its full 2D box, its pixel count, and whether it
-//!    is cut by the image border.
-//! 2. Per band of rows (rayon over bands): merge the fish buffers into the
-//!    frame's depth, id and shade buffers with a depth test.
-//! 3. Per row: cast each pixel's ray. A fish pixel's radiance is its vertex
-//!    shade times `exp(−K·depth)`; any other ray leaves the cage through a net
-//!    wall, the net bottom or the surface (Snell's window, total internal
-//!    reflection outside it). Then `L·exp(−c·t) + in-scatter` (see
-//!    [`crate::optics`]), auto exposure, tone curve, sRGB.
-//!    What every pixel shows without fish (the background) depends only on
-//!    the camera and the conditions, so it is computed once for them and
-//!    kept ([`Renderer::background`]): a clip's frames share it while its
-//!    light does not change (`ClipSetup::conditions` holds the light for
-//!    [`crate::setup::LIGHT_STEP_SECONDS`]). Only fish pixels are shaded
-//!    per frame; the largest channel difference between a fish pixel and
-//!    the background there is the pixel's contrast.
+//!    alone into a small buffer over its screen box (per pixel its depth and
+//!    the triangle that drew it; wide triangles only along each row's span).
+//!    That buffer is the fish's unoccluded silhouette: its full 2D box, its
+//!    pixel count, and whether it is cut by the image border.
+//! 2. Per band of rows (rayon over bands): merge the fish buffers with a
+//!    depth test into the frame's owner buffer (which fish each pixel sees).
+//! 3. Per row: cast each pixel's ray. A fish pixel's radiance is its shade,
+//!    interpolated from its triangle's vertices, times `exp(−K·depth)`; any
+//!    other ray leaves the cage through a net wall, the net bottom or the
+//!    surface (Snell's window, total internal reflection outside it). Then
+//!    `L·exp(−c·t) + in-scatter` (see [`crate::optics`]), auto exposure, tone
+//!    curve, sRGB. What every pixel shows without fish (the background)
+//!    depends only on the camera and the conditions, so it is computed once
+//!    for them and kept ([`Renderer::background`]) with each pixel's ray and
+//!    in-scattering source: a clip's frames share it while its light does not
+//!    change (`ClipSetup::conditions` holds the light for
+//!    [`crate::setup::LIGHT_STEP_SECONDS`]). Only fish pixels are shaded per
+//!    frame; the largest channel difference between a fish pixel and the
+//!    background there is the pixel's contrast.
 //! 4. Labels from the id buffer: visible pixels, visible 2D box and mean
 //!    contrast per fish; a fish with visible pixels and enough contrast is
 //!    detectable (labelled for detectors).
@@ -35,11 +37,11 @@
 
 use crate::camera::{Camera, Lens, NEAR};
 use crate::mesh::{FishMesh, tail_beat_amplitude};
-use crate::optics::{Light, N_WATER, Water, fresnel_air_water};
+use crate::optics::{Light, N_WATER, Water, fresnel_air_water, inscatter_along};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Rendering options; every field has a documented default.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -190,13 +192,29 @@ pub struct Renderer {
 }
 
 /// The image without fish (sRGB after exposure) for one camera and one set
-/// of conditions.
+/// of conditions, and each pixel's ray as fish pixels need it.
 #[derive(Debug)]
 pub struct Background {
     camera: Camera,
     cond: Conditions,
     /// 3 bytes per pixel, row-major.
     pub rgb: Vec<u8>,
+    /// Per pixel, row-major; `None` outside a fisheye's circle.
+    rays: Vec<Option<PixelRay>>,
+}
+
+/// What shading a fish pixel needs of the pixel's ray; it depends on the
+/// camera and the conditions alone, so it is kept with the background.
+#[derive(Clone, Copy, Debug)]
+struct PixelRay {
+    /// Vertical component of the unit ray.
+    vy: f32,
+    /// Distance along the ray per unit of depth-buffer value.
+    k: f32,
+    /// In-scattering source at the camera, [`Light::source`].
+    j0: Vec3,
+    /// `c − K·v_y`, the exponent of [`inscatter_along`].
+    x: Vec3,
 }
 
 /// The newest [`Background`]; a clone of the renderer starts empty.
@@ -217,10 +235,84 @@ struct Local {
     w: u32,
     h: u32,
     depth: Vec<f32>,
-    shade: Vec<Vec3>,
+    /// Per pixel, the triangle that drew it ([`Local::triangle`]); its shade
+    /// is interpolated only where the fish is seen (step 3).
+    tri: Vec<u16>,
+    /// The projected vertices (`None`: behind the camera or out of the lens).
+    verts: Vec<Option<RVert>>,
+    /// The mesh's triangles, then those clipped at a pinhole's near plane.
+    mesh_tris: usize,
+    clipped: Vec<[RVert; 3]>,
+    fisheye: bool,
     truncated: bool,
     box3d: [Vec3; 8],
     distance: f32,
+}
+
+impl Local {
+    /// Triangle `t` as [`raster_tri`] drew it (`mesh` is the fish's).
+    fn triangle(&self, mesh: &FishMesh, t: u16) -> Sampler {
+        let t = t as usize;
+        let (v, linear) = match t.checked_sub(self.mesh_tris) {
+            None => (
+                mesh.triangles[t].map(|k| self.verts[k as usize].expect("drawn, so projected")),
+                self.fisheye,
+            ),
+            Some(c) => (self.clipped[c], false),
+        };
+        Sampler::new(v, linear)
+    }
+}
+
+/// A triangle set up for sampling at pixel centres: vertices, one over its
+/// signed area, and the depth attribute at each vertex (1/z for a pinhole,
+/// perspective-correct; the distance for a fisheye, `linear`).
+struct Sampler {
+    v: [RVert; 3],
+    area: f32,
+    inv: f32,
+    q: [f32; 3],
+    linear: bool,
+}
+
+impl Sampler {
+    fn new(v: [RVert; 3], linear: bool) -> Self {
+        let [a, b, c] = v.map(|v| v.p);
+        let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+        let q = v.map(|v| if linear { v.p.z } else { 1.0 / v.p.z });
+        Self {
+            v,
+            area,
+            inv: 1.0 / area,
+            q,
+            linear,
+        }
+    }
+
+    /// Depth at the point with barycentric weights `w`.
+    #[inline]
+    fn depth(&self, (w0, w1, w2): (f32, f32, f32)) -> f32 {
+        let qv = w0 * self.q[0] + w1 * self.q[1] + w2 * self.q[2];
+        if self.linear { qv } else { 1.0 / qv }
+    }
+
+    /// Shade at the point with weights `w` and depth `d`.
+    fn shade(&self, (w0, w1, w2): (f32, f32, f32), d: f32) -> Vec3 {
+        let [a, b, c] = self.v;
+        if self.linear {
+            a.shade * w0 + b.shade * w1 + c.shade * w2
+        } else {
+            (a.shade * (w0 * self.q[0]) + b.shade * (w1 * self.q[1]) + c.shade * (w2 * self.q[2]))
+                * d
+        }
+    }
+
+    /// Shade at pixel `(x, y)`, which the triangle covers.
+    fn shade_at(&self, x: usize, y: usize) -> Vec3 {
+        let w = barycentric(&self.v, self.inv, x as f32 + 0.5, y as f32 + 0.5)
+            .expect("the pixel was drawn by this triangle");
+        self.shade(w, self.depth(w))
+    }
 }
 
 /// A vertex ready for rasterising.
@@ -229,6 +321,85 @@ struct RVert {
     /// Screen x, y and depth.
     p: Vec3,
     shade: Vec3,
+}
+
+/// The shaded frame before labelling.
+struct Shaded {
+    rgb: Vec<u8>,
+    /// Instance mask: 0 = no fish, `fish + 1` otherwise.
+    ids: Vec<u16>,
+    /// Per pixel, the fish's contrast against the background (0–255).
+    contrast: Vec<u8>,
+}
+
+/// What the id buffer shows of one fish.
+#[derive(Clone, Copy)]
+struct Visible {
+    /// `[x0, y0, x1, y1]`, exclusive ends.
+    bbox: [u32; 4],
+    pixels: u32,
+    contrast_sum: u64,
+}
+
+impl Visible {
+    const NONE: Self = Self {
+        bbox: [u32::MAX, u32::MAX, 0, 0],
+        pixels: 0,
+        contrast_sum: 0,
+    };
+
+    fn add(&mut self, x: u32, y: u32, contrast: u8) {
+        self.join(&Self {
+            bbox: [x, y, x + 1, y + 1],
+            pixels: 1,
+            contrast_sum: contrast as u64,
+        });
+    }
+
+    fn join(&mut self, o: &Self) {
+        let b = &mut self.bbox;
+        b[0] = b[0].min(o.bbox[0]);
+        b[1] = b[1].min(o.bbox[1]);
+        b[2] = b[2].max(o.bbox[2]);
+        b[3] = b[3].max(o.bbox[3]);
+        self.pixels += o.pixels;
+        self.contrast_sum += o.contrast_sum;
+    }
+}
+
+/// Step 2: which fish each pixel of a `w × h` frame sees, as an index into
+/// `locals` plus one (0 = none): the nearest of the fish buffers covering it
+/// (the first in `locals` on a tie). Bands of rows in parallel, each with its
+/// own small depth buffer.
+fn merge(locals: &[Local], w: usize, h: usize) -> Vec<u32> {
+    const BAND: usize = 16;
+    let mut owner = vec![0u32; w * h];
+    owner
+        .par_chunks_mut(BAND * w)
+        .enumerate()
+        .for_each(|(band, own)| {
+            let mut dep = vec![f32::INFINITY; own.len()];
+            let y_lo = band * BAND;
+            let y_hi = y_lo + own.len() / w;
+            for (i, l) in locals.iter().enumerate() {
+                let (ly0, ly1) = (l.y0 as usize, (l.y0 + l.h) as usize);
+                if ly1 <= y_lo || ly0 >= y_hi {
+                    continue;
+                }
+                for y in ly0.max(y_lo)..ly1.min(y_hi) {
+                    let lrow = (y - ly0) * l.w as usize;
+                    let grow = (y - y_lo) * w + l.x0 as usize;
+                    for x in 0..l.w as usize {
+                        let d = l.depth[lrow + x];
+                        if d < dep[grow + x] {
+                            dep[grow + x] = d;
+                            own[grow + x] = i as u32 + 1;
+                        }
+                    }
+                }
+            }
+        });
+    owner
 }
 
 /// Fish-local axes: x to the side, y up, z forward (the heading), rolled.
@@ -263,16 +434,22 @@ impl Renderer {
         }
         let (w, gain) = (camera.width as usize, self.gain(camera, cond));
         let mut rgb = vec![0u8; w * camera.height as usize * 3];
-        rgb.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-            for x in 0..w {
-                let c = self.pixel(camera, cond, x, y, f32::INFINITY, Vec3::ZERO, false);
-                row[3 * x..3 * x + 3].copy_from_slice(&tone(c * gain));
-            }
-        });
+        let mut rays = vec![None; w * camera.height as usize];
+        rgb.par_chunks_mut(w * 3)
+            .zip(rays.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (row, ray_row))| {
+                for x in 0..w {
+                    let c = self.pixel(camera, cond, x, y);
+                    row[3 * x..3 * x + 3].copy_from_slice(&tone(c * gain));
+                    ray_row[x] = pixel_ray(camera, cond, x, y);
+                }
+            });
         let b = Arc::new(Background {
             camera: *camera,
             cond: *cond,
             rgb,
+            rays,
         });
         *kept = Some(b.clone());
         b
@@ -298,7 +475,6 @@ impl Renderer {
             fish.len() < u16::MAX as usize,
             "the 16-bit mask holds up to 65,534 fish"
         );
-        let (w, h) = (camera.width as usize, camera.height as usize);
         // 1. Each fish alone.
         let locals: Vec<Local> = fish
             .par_iter()
@@ -306,76 +482,112 @@ impl Renderer {
             .with_min_len(8)
             .filter_map(|(i, f)| self.raster_fish(i, f, camera, cond))
             .collect();
-        // 2. Merge with a depth test, bands of rows in parallel.
-        let mut depth = vec![f32::INFINITY; w * h];
-        let mut ids = vec![0u16; w * h];
-        let mut shade = vec![Vec3::ZERO; w * h];
-        const BAND: usize = 16;
-        depth
-            .par_chunks_mut(BAND * w)
-            .zip(ids.par_chunks_mut(BAND * w))
-            .zip(shade.par_chunks_mut(BAND * w))
-            .enumerate()
-            .for_each(|(band, ((dep, id), sh))| {
-                let y_lo = band * BAND;
-                let y_hi = y_lo + dep.len() / w;
-                for l in &locals {
-                    let (ly0, ly1) = (l.y0 as usize, (l.y0 + l.h) as usize);
-                    if ly1 <= y_lo || ly0 >= y_hi {
-                        continue;
-                    }
-                    for y in ly0.max(y_lo)..ly1.min(y_hi) {
-                        let lrow = (y - ly0) * l.w as usize;
-                        let grow = (y - y_lo) * w + l.x0 as usize;
-                        for x in 0..l.w as usize {
-                            let d = l.depth[lrow + x];
-                            if d < dep[grow + x] {
-                                dep[grow + x] = d;
-                                id[grow + x] = (l.fish + 1) as u16;
-                                sh[grow + x] = l.shade[lrow + x];
-                            }
-                        }
-                    }
-                }
-            });
-        // 3. The background, then the fish pixels' water and light, and their
-        // contrast against the background (largest channel difference, 0–255).
+        // 2. Which fish each pixel sees.
+        let owner = merge(&locals, camera.width as usize, camera.height as usize);
+        // 3. The fish pixels over the background.
         let gain = self.gain(camera, cond);
+        let shaded = self.shade_fish(fish, &locals, &owner, camera, cond, gain);
+        // 4. Labels.
+        let fish = self.labels(fish, &locals, &shaded, camera);
+        Frame {
+            width: camera.width,
+            height: camera.height,
+            rgb: shaded.rgb,
+            ids: shaded.ids,
+            fish,
+            gain,
+        }
+    }
+
+    /// Step 3: the background, then each fish pixel's water and light, and
+    /// its contrast against the background (largest channel difference,
+    /// 0–255); rows in parallel.
+    fn shade_fish(
+        &self,
+        fish: &[FishPose],
+        locals: &[Local],
+        owner: &[u32],
+        camera: &Camera,
+        cond: &Conditions,
+        gain: f32,
+    ) -> Shaded {
+        let w = camera.width as usize;
         let background = self.background(camera, cond);
         let mut rgb = background.rgb.clone();
-        let mut contrast = vec![0u8; w * h];
+        let mut ids = vec![0u16; owner.len()];
+        let mut contrast = vec![0u8; owner.len()];
         rgb.par_chunks_mut(w * 3)
+            .zip(ids.par_chunks_mut(w))
             .zip(contrast.par_chunks_mut(w))
             .enumerate()
-            .for_each(|(y, (row, crow))| {
-                for x in (0..w).filter(|x| ids[y * w + x] != 0) {
+            .for_each(|(y, ((row, id_row), crow))| {
+                // Neighbouring pixels mostly share a triangle: keep its set-up.
+                let mut last: Option<(u32, u16, Sampler)> = None;
+                for x in 0..w {
                     let k = y * w + x;
-                    let c = self.pixel(camera, cond, x, y, depth[k], shade[k], true);
+                    let o = owner[k];
+                    let Some(l) = o.checked_sub(1).map(|o| &locals[o as usize]) else {
+                        continue;
+                    };
+                    id_row[x] = (l.fish + 1) as u16;
+                    let lk = (y - l.y0 as usize) * l.w as usize + x - l.x0 as usize;
+                    let t = l.tri[lk];
+                    let c = background.rays[k].map_or(Vec3::ZERO, |ray| {
+                        if !matches!(&last, Some((lo, lt, _)) if *lo == o && *lt == t) {
+                            let mesh = &self.meshes[fish[l.fish].species as usize];
+                            last = Some((o, t, l.triangle(mesh, t)));
+                        }
+                        let sampler = &last.as_ref().expect("set above").2;
+                        fish_radiance(camera, cond, &ray, l.depth[lk], sampler.shade_at(x, y))
+                    });
                     let out = tone(c * gain);
                     let bg = &row[3 * x..3 * x + 3];
                     crow[x] = (0..3).map(|j| out[j].abs_diff(bg[j])).max().unwrap_or(0);
                     row[3 * x..3 * x + 3].copy_from_slice(&out);
                 }
             });
-        // 4. Labels.
-        let mut vis = vec![(u32::MAX, u32::MAX, 0u32, 0u32, 0u32); fish.len()];
-        let mut contrast_sum = vec![0u64; fish.len()];
-        for y in 0..h {
-            for x in 0..w {
-                let id = ids[y * w + x];
-                if id != 0 {
-                    contrast_sum[id as usize - 1] += contrast[y * w + x] as u64;
-                    let v = &mut vis[id as usize - 1];
-                    v.0 = v.0.min(x as u32);
-                    v.1 = v.1.min(y as u32);
-                    v.2 = v.2.max(x as u32 + 1);
-                    v.3 = v.3.max(y as u32 + 1);
-                    v.4 += 1;
+        Shaded { rgb, ids, contrast }
+    }
+
+    /// Step 4: each fish's visible box, pixels and mean contrast from the id
+    /// buffer (bands of rows in parallel), then its label.
+    fn labels(
+        &self,
+        fish: &[FishPose],
+        locals: &[Local],
+        shaded: &Shaded,
+        camera: &Camera,
+    ) -> Vec<FishLabel> {
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        let bands = 2 * rayon::current_num_threads();
+        let rows = h.div_ceil(bands);
+        let vis = (0..bands)
+            .into_par_iter()
+            .map(|b| {
+                let mut vis = vec![Visible::NONE; fish.len()];
+                for y in (b * rows).min(h)..((b + 1) * rows).min(h) {
+                    for x in 0..w {
+                        let id = shaded.ids[y * w + x];
+                        if id != 0 {
+                            vis[id as usize - 1].add(
+                                x as u32,
+                                y as u32,
+                                shaded.contrast[y * w + x],
+                            );
+                        }
+                    }
                 }
-            }
-        }
-        let labels = locals
-            .iter()
+                vis
+            })
+            .reduce(
+                || vec![Visible::NONE; fish.len()],
+                |mut a, b| {
+                    a.iter_mut().zip(&b).for_each(|(a, b)| a.join(b));
+                    a
+                },
+            );
+        locals
+            .par_iter()
             .filter_map(|l| {
                 let (mut bx0, mut by0, mut bx1, mut by1, mut n) = (u32::MAX, u32::MAX, 0, 0, 0u32);
                 for yy in 0..l.h {
@@ -393,8 +605,8 @@ impl Renderer {
                     return None;
                 }
                 let v = vis[l.fish];
-                let contrast = if v.4 > 0 {
-                    contrast_sum[l.fish] as f32 / (255.0 * v.4 as f32)
+                let contrast = if v.pixels > 0 {
+                    v.contrast_sum as f32 / (255.0 * v.pixels as f32)
                 } else {
                     0.0
                 };
@@ -402,29 +614,21 @@ impl Renderer {
                 Some(FishLabel {
                     fish: l.fish,
                     species: fish[l.fish].species,
-                    box_visible: (v.4 > 0).then_some([v.0, v.1, v.2, v.3]),
+                    box_visible: (v.pixels > 0).then_some(v.bbox),
                     box_full: [bx0, by0, bx1, by1],
-                    visible_pixels: v.4,
+                    visible_pixels: v.pixels,
                     full_pixels: n,
-                    visibility: v.4 as f32 / n as f32,
+                    visibility: v.pixels as f32 / n as f32,
                     truncated: l.truncated,
                     // Millimetres are plenty and keep the label files small.
                     box3d_world: l.box3d.map(|p| mm(p).to_array()),
                     box3d_camera: l.box3d.map(|p| mm(camera.to_camera(p)).to_array()),
                     distance: (l.distance * 1e3).round() / 1e3,
                     contrast,
-                    detectable: v.4 > 0 && contrast >= self.config.min_contrast,
+                    detectable: v.pixels > 0 && contrast >= self.config.min_contrast,
                 })
             })
-            .collect();
-        Frame {
-            width: camera.width,
-            height: camera.height,
-            rgb,
-            ids,
-            fish: labels,
-            gain,
-        }
+            .collect()
     }
 
     /// Auto exposure: a white surface facing up at the camera's depth maps to
@@ -505,7 +709,8 @@ impl Renderer {
             && cam_pts.iter().any(|c| c.z >= NEAR);
         // Triangles crossing a pinhole's near plane are clipped in camera
         // space first; their new vertices widen the screen box.
-        let mut clipped: Vec<([RVert; 3], bool)> = Vec::new();
+        let mut clipped: Vec<[RVert; 3]> = Vec::new();
+        let mut clipped_cull: Vec<bool> = Vec::new();
         if pinhole_clip {
             for (t, tri) in mesh.triangles.iter().enumerate() {
                 let [a, b, c] = tri.map(|k| k as usize);
@@ -524,7 +729,8 @@ impl Renderer {
                     by1 = by1.max(v.p.y);
                 }
                 for k in 1..pv.len().saturating_sub(1) {
-                    clipped.push(([pv[0], pv[k], pv[k + 1]], t < mesh.first_fin));
+                    clipped.push([pv[0], pv[k], pv[k + 1]]);
+                    clipped_cull.push(t < mesh.first_fin);
                 }
             }
         }
@@ -549,7 +755,11 @@ impl Renderer {
             w,
             h,
             depth: vec![f32::INFINITY; (w * h) as usize],
-            shade: vec![Vec3::ZERO; (w * h) as usize],
+            tri: vec![0; (w * h) as usize],
+            verts,
+            mesh_tris: mesh.triangles.len(),
+            clipped,
+            fisheye: false,
             truncated,
             box3d: [Vec3::ZERO; 8],
             distance: (f.position - cam.position).length(),
@@ -564,17 +774,22 @@ impl Renderer {
             } => Some((cx, cy, (f * theta_max).powi(2))),
             Lens::Pinhole { .. } => None,
         };
-        let fisheye = circle.is_some();
+        local.fisheye = circle.is_some();
+        // Triangle ids are u16: the mesh and its clipped pieces must fit.
+        debug_assert!(local.mesh_tris + local.clipped.len() <= u16::MAX as usize);
         for (t, tri) in mesh.triangles.iter().enumerate() {
             let cull = t < mesh.first_fin;
             let [a, b, c] = tri.map(|k| k as usize);
-            let (Some(va), Some(vb), Some(vc)) = (verts[a], verts[b], verts[c]) else {
+            let (Some(va), Some(vb), Some(vc)) = (local.verts[a], local.verts[b], local.verts[c])
+            else {
                 continue;
             };
-            raster_tri(&mut local, [va, vb, vc], cull, fisheye, circle);
+            let sampler = Sampler::new([va, vb, vc], local.fisheye);
+            raster_tri(&mut local, &sampler, t as u16, cull, circle);
         }
-        for (tri, cull) in clipped {
-            raster_tri(&mut local, tri, cull, false, circle);
+        for (c, cull) in clipped_cull.into_iter().enumerate() {
+            let (sampler, t) = (Sampler::new(local.clipped[c], false), local.mesh_tris + c);
+            raster_tri(&mut local, &sampler, t as u16, cull, circle);
         }
         // 3D box from the bent mesh's local bounds.
         let mut k = 0;
@@ -589,31 +804,15 @@ impl Renderer {
         Some(local)
     }
 
-    /// Radiance reaching pixel `(x, y)`.
-    #[allow(clippy::too_many_arguments)]
-    fn pixel(
-        &self,
-        cam: &Camera,
-        cond: &Conditions,
-        x: usize,
-        y: usize,
-        depth: f32,
-        shade: Vec3,
-        is_fish: bool,
-    ) -> Vec3 {
+    /// Radiance reaching pixel `(x, y)` when no fish is in the way: the ray
+    /// leaves the (convex) cage through the net or the surface.
+    fn pixel(&self, cam: &Camera, cond: &Conditions, x: usize, y: usize) -> Vec3 {
         let Some((v, k)) = cam.ray(x as f32 + 0.5, y as f32 + 0.5) else {
             return Vec3::ZERO;
         };
         let (water, light) = (&cond.water, &cond.light);
         let o = cam.position;
         let d0 = (-o.y).max(0.0);
-        if is_fish {
-            let t = depth * k;
-            let d = (-(o.y + v.y * t)).max(0.0);
-            let l = shade * (-water.k * d).exp();
-            return light.composite(water, l, d0, v, t);
-        }
-        // Leave the (convex) cage.
         let (mut t, mut face) = (f32::INFINITY, None);
         for fc in &self.faces {
             let nv = fc.normal.dot(v);
@@ -687,6 +886,36 @@ impl Renderer {
     }
 }
 
+/// The ray of pixel `(x, y)` as [`fish_radiance`] needs it.
+fn pixel_ray(cam: &Camera, cond: &Conditions, x: usize, y: usize) -> Option<PixelRay> {
+    let (v, k) = cam.ray(x as f32 + 0.5, y as f32 + 0.5)?;
+    let (water, light) = (&cond.water, &cond.light);
+    let d0 = (-cam.position.y).max(0.0);
+    Some(PixelRay {
+        vy: v.y,
+        k,
+        j0: light.source(water, d0, v),
+        x: water.c - water.k * v.y,
+    })
+}
+
+/// Radiance reaching the camera from a fish surface of shade `shade` at
+/// depth-buffer value `depth` along `ray`: the surface's light is dimmed by
+/// `exp(−K·d)` at its depth `d`, then [`Light::composite`] puts the water
+/// between it and the camera.
+fn fish_radiance(cam: &Camera, cond: &Conditions, ray: &PixelRay, depth: f32, shade: Vec3) -> Vec3 {
+    let water = &cond.water;
+    let t = depth * ray.k;
+    let d = (-(cam.position.y + ray.vy * t)).max(0.0);
+    let l = shade * (-water.k * d).exp();
+    let scattered = if water.scattering {
+        inscatter_along(ray.j0, ray.x, t)
+    } else {
+        Vec3::ZERO
+    };
+    l * water.transmittance(t) + scattered
+}
+
 /// A point rounded to whole millimetres.
 fn mm(p: Vec3) -> Vec3 {
     (p * 1e3).round() / 1e3
@@ -704,17 +933,45 @@ fn line_coverage(x: f32, f: f32, s: f32, w: f32) -> f32 {
     ((cum(x + f / 2.0) - cum(x - f / 2.0)) / f).clamp(0.0, 1.0)
 }
 
-/// Tone curve `1 − exp(−x)` and sRGB encoding.
-fn tone(c: Vec3) -> [u8; 3] {
-    let enc = |x: f32| {
-        let y = 1.0 - (-x.max(0.0)).exp();
-        let s = if y <= 0.0031308 {
-            12.92 * y
-        } else {
-            1.055 * y.powf(1.0 / 2.4) - 0.055
-        };
-        (s * 255.0 + 0.5).clamp(0.0, 255.0) as u8
+/// Tone curve `1 − exp(−x)` and sRGB encoding of one channel.
+fn encode_channel(x: f32) -> u8 {
+    let y = 1.0 - (-x.max(0.0)).exp();
+    let s = if y <= 0.0031308 {
+        12.92 * y
+    } else {
+        1.055 * y.powf(1.0 / 2.4) - 0.055
     };
+    (s * 255.0 + 0.5).clamp(0.0, 255.0) as u8
+}
+
+/// The smallest input of each output level 1..=255 of [`encode_channel`],
+/// found once by bisection over the floats' bit patterns (non-negative floats
+/// order as their bits, and the curve never falls).
+fn tone_thresholds() -> &'static [f32; 255] {
+    static T: OnceLock<[f32; 255]> = OnceLock::new();
+    T.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let level = i as u8 + 1;
+            let (mut lo, mut hi) = (0u32, f32::MAX.to_bits());
+            while hi - lo > 1 {
+                let mid = lo + (hi - lo) / 2;
+                if encode_channel(f32::from_bits(mid)) >= level {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            f32::from_bits(hi)
+        })
+    })
+}
+
+/// Tone curve and sRGB encoding ([`encode_channel`]) by the table of
+/// [`tone_thresholds`]: eight comparisons per channel instead of an `exp`
+/// and a `powf`, with the same bytes (NaN and negative inputs give 0).
+fn tone(c: Vec3) -> [u8; 3] {
+    let t = tone_thresholds();
+    let enc = |x: f32| t.partition_point(|&th| th <= x) as u8;
     [enc(c.x), enc(c.y), enc(c.z)]
 }
 
@@ -736,62 +993,141 @@ fn clip_near(tri: [(Vec3, Vec3); 3]) -> Vec<(Vec3, Vec3)> {
     out
 }
 
-/// Rasterise one triangle into a fish's own buffer. Pixel centres inside (or
-/// on an edge of) the triangle are covered. `cull`: drop back faces.
-fn raster_tri(
-    l: &mut Local,
-    v: [RVert; 3],
-    cull: bool,
-    linear_depth: bool,
-    circle: Option<(f32, f32, f32)>,
-) {
-    let [a, b, c] = v;
-    let area = (b.p.x - a.p.x) * (c.p.y - a.p.y) - (b.p.y - a.p.y) * (c.p.x - a.p.x);
-    if area == 0.0 || !area.is_finite() {
+/// Barycentric weights of pixel centre `(px, py)` in triangle `v` (`inv` is
+/// one over its signed area), or `None` when the centre lies outside. The
+/// one coverage test: [`raster_tri`] and [`RowSpan`] are exact against it.
+#[inline]
+fn barycentric(v: &[RVert; 3], inv: f32, px: f32, py: f32) -> Option<(f32, f32, f32)> {
+    let [a, b, c] = v.map(|v| v.p);
+    let w0 = ((b.x - px) * (c.y - py) - (b.y - py) * (c.x - px)) * inv;
+    let w1 = ((c.x - px) * (a.y - py) - (c.y - py) * (a.x - px)) * inv;
+    let w2 = 1.0 - w0 - w1;
+    (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0).then_some((w0, w1, w2))
+}
+
+/// The pixels of a row that can pass [`barycentric`]: along a row each
+/// weight is affine in `px`, so the centres inside form an interval. It is
+/// found in f64 with a tolerance that bounds the f32 rounding of the weights
+/// (a few ulps of the products' magnitude), widened by a pixel each side:
+/// every centre outside it fails the f32 test too, so scanning the span
+/// covers exactly the pixels that scanning the whole box would.
+struct RowSpan {
+    /// Vertices (f64).
+    v: [[f64; 2]; 3],
+    inv: f64,
+    /// Bound on the f32 error of `w0`, `w1`; of `w2`.
+    tol01: f64,
+    tol2: f64,
+}
+
+impl RowSpan {
+    fn new(v: &[RVert; 3], inv: f32, x0: i64, x1: i64, y0: i64, y1: i64) -> Self {
+        let u = f32::EPSILON as f64 / 2.0;
+        // Largest distances between a vertex and a pixel centre of the box.
+        let (mut mx, mut my) = (0f64, 0f64);
+        for p in v.iter().map(|v| v.p) {
+            let (x, y) = (p.x as f64, p.y as f64);
+            mx = mx
+                .max((x - (x0 as f64 + 0.5)).abs())
+                .max((x - (x1 as f64 + 0.5)).abs());
+            my = my
+                .max((y - (y0 as f64 + 0.5)).abs())
+                .max((y - (y1 as f64 + 0.5)).abs());
+        }
+        let inv = inv as f64;
+        // Each product ≤ mx·my; two products, their difference and the
+        // scaling by `inv` round at most 4 times: 16u·mx·my·|inv| is ample.
+        let tol01 = 16.0 * u * mx * my * inv.abs() + 4.0 * u;
+        // w2 = 1 − w0 − w1 adds both errors and two roundings of |w| ≤ 2·mx·my·|inv| + 1.
+        let tol2 = 2.0 * tol01 + 8.0 * u * (1.0 + 4.0 * mx * my * inv.abs());
+        Self {
+            v: v.map(|v| [v.p.x as f64, v.p.y as f64]),
+            inv,
+            tol01,
+            tol2,
+        }
+    }
+
+    /// Columns `[lo, hi]` of row `y` (pixel centre `y + 0.5`) within
+    /// `[x0, x1]` that may be covered; empty when `lo > hi`.
+    fn columns(&self, y: i64, x0: i64, x1: i64) -> (i64, i64) {
+        let [a, b, c] = self.v;
+        let py = y as f64 + 0.5;
+        let w = |px: f64| {
+            let w0 = ((b[0] - px) * (c[1] - py) - (b[1] - py) * (c[0] - px)) * self.inv;
+            let w1 = ((c[0] - px) * (a[1] - py) - (c[1] - py) * (a[0] - px)) * self.inv;
+            [w0, w1, 1.0 - w0 - w1]
+        };
+        let (pl, pr) = (x0 as f64 + 0.5, x1 as f64 + 0.5);
+        let (wl, wr) = (w(pl), w(pr));
+        let (mut lo, mut hi) = (pl, pr);
+        for j in 0..3 {
+            let tol = if j == 2 { self.tol2 } else { self.tol01 };
+            // w_j + tol ≥ 0 on [lo, hi], an affine function of px.
+            let (fl, fr) = (wl[j] + tol, wr[j] + tol);
+            if fl < 0.0 && fr < 0.0 {
+                return (1, 0);
+            }
+            if fl >= 0.0 && fr >= 0.0 {
+                continue;
+            }
+            let cross = pl + (pr - pl) * fl / (fl - fr);
+            if fl < 0.0 {
+                lo = lo.max(cross);
+            } else {
+                hi = hi.min(cross);
+            }
+        }
+        if lo > hi {
+            return (1, 0);
+        }
+        // Centres px = x + 0.5 in [lo, hi], a pixel more each side.
+        let first = ((lo - 0.5).ceil() as i64 - 1).max(x0);
+        let last = ((hi - 0.5).floor() as i64 + 1).min(x1);
+        (first, last)
+    }
+}
+
+/// Rasterise triangle `t` into a fish's own buffer: its depth and, per
+/// pixel, the triangle's id. Pixel centres inside (or on an edge of) the
+/// triangle are covered. `cull`: drop back faces.
+fn raster_tri(l: &mut Local, s: &Sampler, t: u16, cull: bool, circle: Option<(f32, f32, f32)>) {
+    let [a, b, c] = s.v.map(|v| v.p);
+    if s.area == 0.0 || !s.area.is_finite() {
         return;
     }
     // Mesh triangles wind counter-clockwise seen from outside; with the
     // image's y pointing down, front faces have negative area.
-    if cull && area > 0.0 {
+    if cull && s.area > 0.0 {
         return;
     }
-    let x0 = a.p.x.min(b.p.x).min(c.p.x).floor().max(l.x0 as f32) as i64;
-    let y0 = a.p.y.min(b.p.y).min(c.p.y).floor().max(l.y0 as f32) as i64;
-    let x1 = (a.p.x.max(b.p.x).max(c.p.x).ceil() as i64).min((l.x0 + l.w) as i64 - 1);
-    let y1 = (a.p.y.max(b.p.y).max(c.p.y).ceil() as i64).min((l.y0 + l.h) as i64 - 1);
+    let x0 = a.x.min(b.x).min(c.x).floor().max(l.x0 as f32) as i64;
+    let y0 = a.y.min(b.y).min(c.y).floor().max(l.y0 as f32) as i64;
+    let x1 = (a.x.max(b.x).max(c.x).ceil() as i64).min((l.x0 + l.w) as i64 - 1);
+    let y1 = (a.y.max(b.y).max(c.y).ceil() as i64).min((l.y0 + l.h) as i64 - 1);
     if x0 > x1 || y0 > y1 {
         return;
     }
-    let inv = 1.0 / area;
-    // Depth attribute: 1/z for a pinhole (perspective-correct), distance for a fisheye.
-    let q = |p: Vec3| if linear_depth { p.z } else { 1.0 / p.z };
-    let (qa, qb, qc) = (q(a.p), q(b.p), q(c.p));
+    // Small boxes are scanned whole; wider ones only along each row's span.
+    let span = (x1 - x0 >= 4).then(|| RowSpan::new(&s.v, s.inv, x0, x1, y0, y1));
     for y in y0..=y1 {
         let py = y as f32 + 0.5;
-        for x in x0..=x1 {
+        let (xs, xe) = span.as_ref().map_or((x0, x1), |sp| sp.columns(y, x0, x1));
+        for x in xs..=xe {
             let px = x as f32 + 0.5;
-            let w0 = ((b.p.x - px) * (c.p.y - py) - (b.p.y - py) * (c.p.x - px)) * inv;
-            let w1 = ((c.p.x - px) * (a.p.y - py) - (c.p.y - py) * (a.p.x - px)) * inv;
-            let w2 = 1.0 - w0 - w1;
-            if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+            let Some(w) = barycentric(&s.v, s.inv, px, py) else {
                 continue;
-            }
+            };
             if let Some((cx, cy, r2)) = circle
                 && (px - cx).powi(2) + (py - cy).powi(2) > r2
             {
                 continue;
             }
-            let qv = w0 * qa + w1 * qb + w2 * qc;
-            let d = if linear_depth { qv } else { 1.0 / qv };
+            let d = s.depth(w);
             let k = ((y as u32 - l.y0) * l.w + (x as u32 - l.x0)) as usize;
             if d < l.depth[k] {
                 l.depth[k] = d;
-                // Perspective-correct shade for a pinhole.
-                l.shade[k] = if linear_depth {
-                    a.shade * w0 + b.shade * w1 + c.shade * w2
-                } else {
-                    (a.shade * (w0 * qa) + b.shade * (w1 * qb) + c.shade * (w2 * qc)) * d
-                };
+                l.tri[k] = t;
             }
         }
     }
@@ -847,5 +1183,93 @@ mod tests {
         let z = l.depth[(cy * l.w + cx) as usize];
         let half = style.width / 2.0;
         assert!((z - (2.0 - half)).abs() < 0.01, "z {z}, half width {half}");
+    }
+
+    /// The tone table gives the bytes of the curve it replaces: at each
+    /// level's threshold and the float just below it, on a sweep of the
+    /// non-negative floats, and for zero, negatives, infinity and NaN.
+    #[test]
+    fn the_tone_table_is_the_tone_curve() {
+        let t = tone_thresholds();
+        assert!(t.windows(2).all(|p| p[0] < p[1]), "thresholds rise");
+        let one = |x: f32| tone(Vec3::splat(x))[0];
+        for (i, &th) in t.iter().enumerate() {
+            assert_eq!(encode_channel(th), i as u8 + 1);
+            assert_eq!(one(th), i as u8 + 1);
+            let below = f32::from_bits(th.to_bits() - 1);
+            assert_eq!(one(below), encode_channel(below), "below level {}", i + 1);
+            assert_eq!(encode_channel(below), i as u8);
+        }
+        // Every 4,099th float from 0 to infinity (a prime stride hits every
+        // exponent and mantissas all over).
+        for bits in (0..f32::INFINITY.to_bits()).step_by(4099) {
+            let x = f32::from_bits(bits);
+            assert_eq!(one(x), encode_channel(x), "x = {x:e}");
+        }
+        for x in [0.0, -0.0, -1.0, f32::NEG_INFINITY, f32::INFINITY, f32::NAN] {
+            assert_eq!(one(x), encode_channel(x), "x = {x}");
+        }
+        assert_eq!((one(f32::NAN), one(-1.0), one(f32::INFINITY)), (0, 0, 255));
+    }
+
+    /// A row's span never drops a pixel the full-box scan would draw:
+    /// random triangles (large, tiny, slivers, far off-screen vertices), every
+    /// pixel of their box outside the span fails the coverage test.
+    #[test]
+    fn row_spans_keep_every_covered_pixel() {
+        let mut rng = crate::setup::Rng::new(7, 0);
+        let rv = |x: f32, y: f32| RVert {
+            p: Vec3::new(x, y, 1.0),
+            shade: Vec3::ZERO,
+        };
+        let (mut covered, mut skipped) = (0u64, 0u64);
+        for case in 0..3000 {
+            let scale = [4.0, 40.0, 400.0, 5e4][case % 4];
+            let mut v = [0; 3].map(|_| rv(rng.range(-scale, scale), rng.range(-scale, scale)));
+            if case % 3 == 0 {
+                // A sliver: the third vertex almost on the first edge.
+                let t = rng.range(0.0, 1.0);
+                let (a, b) = (v[0].p, v[1].p);
+                v[2] = rv(a.x + (b.x - a.x) * t + 1e-3, a.y + (b.y - a.y) * t);
+            }
+            let s = Sampler::new(v, true);
+            if s.area == 0.0 || !s.area.is_finite() {
+                continue;
+            }
+            let [a, b, c] = v.map(|v| v.p);
+            let clampi = |z: f32| (z as i64).clamp(-600, 600);
+            let (x0, x1) = (
+                clampi(a.x.min(b.x).min(c.x).floor()),
+                clampi(a.x.max(b.x).max(c.x).ceil()),
+            );
+            let (y0, y1) = (
+                clampi(a.y.min(b.y).min(c.y).floor()),
+                clampi(a.y.max(b.y).max(c.y).ceil()),
+            );
+            if x0 > x1 || y0 > y1 {
+                continue;
+            }
+            let span = RowSpan::new(&v, s.inv, x0, x1, y0, y1);
+            for y in y0..=y1 {
+                let (lo, hi) = span.columns(y, x0, x1);
+                for x in x0..=x1 {
+                    let inside = barycentric(&v, s.inv, x as f32 + 0.5, y as f32 + 0.5).is_some();
+                    if (lo..=hi).contains(&x) {
+                        covered += inside as u64;
+                    } else {
+                        assert!(
+                            !inside,
+                            "case {case}: pixel ({x}, {y}) outside span {lo}..={hi}"
+                        );
+                        skipped += 1;
+                    }
+                }
+            }
+        }
+        // The spans do skip most of the empty box, and cover something.
+        assert!(
+            covered > 100_000 && skipped > covered,
+            "{covered} covered, {skipped} skipped"
+        );
     }
 }
