@@ -21,8 +21,8 @@ use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
 use deepfoids_render::dataset::ImageFormat;
 use deepfoids_render::setup::{TailPhases, place_camera, poses, species_meshes};
 use deepfoids_render::{
-    CameraKind, ClipParams, Dataset, FishPose, FrameMeta, RandomRanges, RenderConfig, Renderer,
-    Split,
+    CameraKind, ClipParams, Dataset, FishPose, FrameMeta, FrameWriter, RandomRanges, RenderConfig,
+    Renderer, Split,
 };
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -293,6 +293,7 @@ impl Job<'_> {
                     .map_err(|e| anyhow::anyhow!("clip {}: {e}", clip.clip))?
             };
             let mut visible = 0usize;
+            let mut writer = FrameWriter::new(self.dataset, &behaviour_of);
             for (i, (hours, time, fish)) in range.clone().zip(&steps) {
                 if self.dataset.frame_done(i)
                     && let Ok((v, a)) = self.dataset.frame_meta(i)
@@ -302,8 +303,6 @@ impl Job<'_> {
                     continue;
                 }
                 let cond = water.conditions(&cs, *hours, true);
-                let frame = self.renderer.render(fish, &camera, &cond);
-                visible += frame.visible_count();
                 let meta = FrameMeta {
                     clip: clip.clip,
                     time: *time,
@@ -313,14 +312,18 @@ impl Job<'_> {
                     split,
                     water_attempt: attempt,
                 };
-                self.dataset
-                    .write_frame(i, &frame, &behaviour_of, &meta)
-                    .with_context(|| format!("writing frame {i}"))?;
+                // Frame i renders while frame i − 1 is written.
+                visible += writer
+                    .next(i, meta, || self.renderer.render(fish, &camera, &cond))
+                    .with_context(|| format!("writing a frame of clip {}", clip.clip))?;
                 if first_pass {
                     rendered += 1;
                     progress(rendered);
                 }
             }
+            writer
+                .finish()
+                .with_context(|| format!("writing the last frame of clip {}", clip.clip))?;
             if visible > 0 || !self.spec.randomize || self.spec.allow_empty {
                 break;
             }

@@ -16,6 +16,7 @@
 
 use crate::render::{FishLabel, Frame};
 use deepfoids_io::write_atomic;
+use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::{Value, json};
 use std::io::Cursor;
@@ -37,7 +38,7 @@ pub enum DatasetError {
 }
 
 /// `value` as JSON text (compact, or pretty), written atomically to `path`.
-fn write_json(path: &Path, value: &Value, pretty: bool) -> Result<(), DatasetError> {
+fn write_json(path: &Path, value: &impl Serialize, pretty: bool) -> Result<(), DatasetError> {
     let text = if pretty {
         serde_json::to_string_pretty(value)
     } else {
@@ -67,6 +68,9 @@ fn read_json(path: &Path) -> Result<Value, DatasetError> {
 }
 
 /// Image file format.
+/// Quality of the JPEG images (4:2:0 chroma, standard tables).
+const JPEG_QUALITY: u8 = 92;
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ImageFormat {
@@ -121,6 +125,90 @@ pub struct FrameMeta {
     pub split: Split,
     /// Times the clip's water was redrawn because nothing was visible (0 at first).
     pub water_attempt: u32,
+}
+
+/// A frame's JSON (`frames/`).
+#[derive(Serialize)]
+struct FrameEntry<'a> {
+    frame: usize,
+    file_name: String,
+    mask: String,
+    width: u32,
+    height: u32,
+    visible_fish: usize,
+    in_view_fish: usize,
+    exposure_gain: f32,
+    meta: &'a FrameMeta,
+    fish: Vec<FishEntry<'a>>,
+}
+
+/// A fish in its frame's JSON.
+#[derive(Serialize)]
+struct FishEntry<'a> {
+    label: &'a FishLabel,
+    species: Option<&'a String>,
+    size_class: Option<&'a String>,
+    /// COCO's compressed RLE of the visible pixels.
+    segmentation: Option<Segmentation>,
+}
+
+#[derive(Serialize)]
+struct Segmentation {
+    /// `[height, width]`.
+    size: [u32; 2],
+    counts: String,
+}
+
+/// Writes a dataset's frames one behind their rendering: [`FrameWriter::next`]
+/// renders a frame while the previous one is encoded and written
+/// (`rayon::join`), so the writing's serial parts (label JSON, files) run
+/// beside the next frame's rendering instead of after it. Frames are written
+/// in order; one not yet written when a run stops is rendered again when it
+/// continues (its JSON, written last, is missing).
+pub struct FrameWriter<'a> {
+    dataset: &'a Dataset,
+    behaviour_of: &'a [u16],
+    pending: Option<(usize, Frame, FrameMeta)>,
+}
+
+impl<'a> FrameWriter<'a> {
+    /// `behaviour_of[fish]` names each fish's behaviour (its size class).
+    pub fn new(dataset: &'a Dataset, behaviour_of: &'a [u16]) -> Self {
+        Self {
+            dataset,
+            behaviour_of,
+            pending: None,
+        }
+    }
+
+    /// Render frame `i` with `render` while the previous frame is written;
+    /// returns frame `i`'s visible-fish count.
+    pub fn next(
+        &mut self,
+        i: usize,
+        meta: FrameMeta,
+        render: impl FnOnce() -> Frame + Send,
+    ) -> Result<usize, DatasetError> {
+        let pending = self.pending.take();
+        let (frame, written) = rayon::join(render, || self.write(pending));
+        written?;
+        let visible = frame.visible_count();
+        self.pending = Some((i, frame, meta));
+        Ok(visible)
+    }
+
+    /// Write the last frame.
+    pub fn finish(mut self) -> Result<(), DatasetError> {
+        let pending = self.pending.take();
+        self.write(pending)
+    }
+
+    fn write(&self, pending: Option<(usize, Frame, FrameMeta)>) -> Result<(), DatasetError> {
+        pending.map_or(Ok(()), |(i, frame, meta)| {
+            self.dataset
+                .write_frame(i, &frame, self.behaviour_of, &meta)
+        })
+    }
 }
 
 /// Which split a clip belongs to. Neighbouring frames of a clip are nearly
@@ -261,53 +349,57 @@ impl Dataset {
         write_atomic(&p, &mask).map_err(io(&p))?;
         let p = self.label_path(i);
         write_atomic(&p, yolo_labels(frame).as_bytes()).map_err(io(&p))?;
-        let fish: Vec<Value> = frame
-            .fish
-            .iter()
-            .map(|f| self.fish_json(f, frame, behaviour_of))
-            .collect();
-        let v = json!({
-            "frame": i,
-            "file_name": format!("images/{}.{}", Self::name(i), self.format.ext()),
-            "mask": format!("masks/{}.png", Self::name(i)),
-            "width": frame.width,
-            "height": frame.height,
-            "visible_fish": frame.visible_count(),
-            "in_view_fish": frame.in_view_count(),
-            "exposure_gain": frame.gain,
-            "meta": meta,
-            "fish": fish,
-        });
+        // Serialised straight from the labels (a `Value` would widen each f32
+        // to f64 and print 1.613 as 1.6130000352859497).
+        let entry = FrameEntry {
+            frame: i,
+            file_name: format!("images/{}.{}", Self::name(i), self.format.ext()),
+            mask: format!("masks/{}.png", Self::name(i)),
+            width: frame.width,
+            height: frame.height,
+            visible_fish: frame.visible_count(),
+            in_view_fish: frame.in_view_count(),
+            exposure_gain: frame.gain,
+            meta,
+            fish: frame
+                .fish
+                .par_iter()
+                .map(|f| self.fish_entry(f, frame, behaviour_of))
+                .collect(),
+        };
         let p = self.frame_json_path(i);
-        write_json(&p, &v, false)
+        write_json(&p, &entry, false)
     }
 
-    fn fish_json(&self, f: &FishLabel, frame: &Frame, behaviour_of: &[u16]) -> Value {
+    fn fish_entry<'a>(
+        &'a self,
+        f: &'a FishLabel,
+        frame: &Frame,
+        behaviour_of: &[u16],
+    ) -> FishEntry<'a> {
         let b = behaviour_of.get(f.fish).copied().unwrap_or(0) as usize;
-        let segmentation = f.box_visible.map(|bx| {
-            json!({
-                "size": [frame.height, frame.width],
-                "counts": rle_string(&rle_counts(frame, (f.fish + 1) as u16, bx)),
-            })
-        });
-        json!({
-            "label": f,
-            "species": self.classes.get(f.species as usize),
-            "size_class": self.size_classes.get(b),
-            "segmentation": segmentation,
-        })
+        FishEntry {
+            label: f,
+            species: self.classes.get(f.species as usize),
+            size_class: self.size_classes.get(b),
+            segmentation: f.box_visible.map(|bx| Segmentation {
+                size: [frame.height, frame.width],
+                counts: rle_string(&rle_counts(frame, (f.fish + 1) as u16, bx)),
+            }),
+        }
     }
 
     fn encode_image(&self, i: usize, frame: &Frame) -> Result<Vec<u8>, DatasetError> {
         let mut buf = Vec::new();
         let res = match self.format {
-            ImageFormat::Jpg => image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, 92)
+            ImageFormat::Jpg => jpeg_encoder::Encoder::new(&mut buf, JPEG_QUALITY)
                 .encode(
                     &frame.rgb,
-                    frame.width,
-                    frame.height,
-                    image::ExtendedColorType::Rgb8,
-                ),
+                    frame.width as u16,
+                    frame.height as u16,
+                    jpeg_encoder::ColorType::Rgb,
+                )
+                .map_err(|e| e.to_string()),
             ImageFormat::Png => image::ImageEncoder::write_image(
                 image::codecs::png::PngEncoder::new_with_quality(
                     Cursor::new(&mut buf),
@@ -318,11 +410,12 @@ impl Dataset {
                 frame.width,
                 frame.height,
                 image::ExtendedColorType::Rgb8,
-            ),
+            )
+            .map_err(|e| e.to_string()),
         };
-        res.map_err(|e| DatasetError::Encode {
+        res.map_err(|message| DatasetError::Encode {
             path: self.image_path(i),
-            message: e.to_string(),
+            message,
         })?;
         Ok(buf)
     }

@@ -16,7 +16,7 @@ pub mod render;
 pub mod setup;
 
 pub use camera::{Camera, Lens};
-pub use dataset::{Dataset, DatasetError, FrameMeta, ImageFormat, Split};
+pub use dataset::{Dataset, DatasetError, FrameMeta, FrameWriter, ImageFormat, Split};
 pub use optics::{Light, Water, WaterParams};
 pub use render::{Conditions, FishLabel, FishPose, Frame, RenderConfig, Renderer};
 pub use setup::{CameraKind, CameraPlacement, ClipParams, RandomRanges, TailPhases};

@@ -558,3 +558,69 @@ fn the_light_is_held_for_a_step() {
         )
     );
 }
+
+/// Frames written one behind their rendering (`FrameWriter`) are byte for
+/// byte the frames `write_frame` writes at once; the last one appears only
+/// at `finish`. The frame JSON prints each f32 as itself (2.636, not the
+/// f64 widening 2.63599991798401).
+#[test]
+fn the_frame_writer_writes_what_write_frame_writes() {
+    use deepfoids_render::{Dataset, FrameMeta, FrameWriter, ImageFormat, Split};
+    let r = renderer();
+    let cam = side_camera(60.0, 160, 120);
+    let fish = [fish_at(Vec3::new(0.1, -2.0, 0.6), Vec3::X, 0.5)];
+    let meta = |i: usize| FrameMeta {
+        clip: 0,
+        time: i as f64 * 0.2,
+        clock_hours: 11.0,
+        sun_elevation_deg: 40.0,
+        camera: cam,
+        split: Split::Train,
+        water_attempt: 0,
+    };
+    let render = |i: usize| r.render(&fish, &cam, &conditions(11.0 + i as f64));
+    let root = std::env::temp_dir().join(format!("deepfoids-writer-{}", std::process::id()));
+    let dataset = |name: &str| {
+        let names = |s: &str| vec![s.to_string()];
+        Dataset::new(
+            &root.join(name),
+            ImageFormat::Jpg,
+            names("coho"),
+            names("regular"),
+        )
+    };
+    let (behind, direct) = (dataset("behind"), dataset("direct"));
+    let mut writer = FrameWriter::new(&behind, &[0]);
+    for i in 0..3 {
+        let visible = writer.next(i, meta(i), || render(i)).unwrap();
+        let frame = render(i);
+        assert_eq!(visible, frame.visible_count());
+        direct.write_frame(i, &frame, &[0], &meta(i)).unwrap();
+    }
+    assert!(behind.frame_done(1) && !behind.frame_done(2));
+    writer.finish().unwrap();
+    for i in 0..3 {
+        for path in [
+            Dataset::image_path,
+            Dataset::mask_path,
+            Dataset::label_path,
+            Dataset::frame_json_path,
+        ] {
+            let read = |d: &Dataset| std::fs::read(path(d, i)).unwrap();
+            assert_eq!(
+                read(&behind),
+                read(&direct),
+                "{}",
+                path(&behind, i).display()
+            );
+        }
+    }
+    let text = std::fs::read_to_string(direct.frame_json_path(0)).unwrap();
+    let distance = render(0).fish[0].distance;
+    assert!(
+        text.contains(&format!("\"distance\":{distance},")),
+        "{distance} as written: {}",
+        &text[text.find("\"distance\"").unwrap()..][..30]
+    );
+    std::fs::remove_dir_all(&root).unwrap();
+}
