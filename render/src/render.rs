@@ -966,12 +966,46 @@ fn tone_thresholds() -> &'static [f32; 255] {
     })
 }
 
-/// Tone curve and sRGB encoding ([`encode_channel`]) by the table of
-/// [`tone_thresholds`]: eight comparisons per channel instead of an `exp`
-/// and a `powf`, with the same bytes (NaN and negative inputs give 0).
+/// Bits of a float dropped to index [`tone_start`]'s buckets: 8 mantissa
+/// bits are left, so a bucket spans under 0.4 % of its value and the curve
+/// rises by at most one level across one.
+const TONE_BUCKET_SHIFT: u32 = 15;
+
+/// Per bucket of non-negative floats (their bits shifted right by
+/// [`TONE_BUCKET_SHIFT`], up to infinity's), the output level at the
+/// bucket's smallest float: how many thresholds lie at or below it.
+fn tone_start() -> &'static [u8] {
+    static S: OnceLock<Vec<u8>> = OnceLock::new();
+    S.get_or_init(|| {
+        let t = tone_thresholds();
+        (0..=f32::INFINITY.to_bits() >> TONE_BUCKET_SHIFT)
+            .map(|i| {
+                let x = f32::from_bits(i << TONE_BUCKET_SHIFT);
+                t.partition_point(|&th| th <= x) as u8
+            })
+            .collect()
+    })
+}
+
+/// Tone curve and sRGB encoding ([`encode_channel`]) by table: the level at
+/// the start of the input's bucket ([`tone_start`]), then up past each
+/// threshold ([`tone_thresholds`]) at or below the input — one lookup and a
+/// comparison or two per channel instead of an `exp` and a `powf`, with the
+/// same bytes. NaN and negative inputs give 0, as the curve does.
 fn tone(c: Vec3) -> [u8; 3] {
-    let t = tone_thresholds();
-    let enc = |x: f32| t.partition_point(|&th| th <= x) as u8;
+    let (t, start) = (tone_thresholds(), tone_start());
+    let enc = |x: f32| {
+        let b = x.to_bits();
+        if b >= f32::INFINITY.to_bits() {
+            // Infinity; NaN and negative floats (sign bit set) sort above it.
+            return if x == f32::INFINITY { 255 } else { 0 };
+        }
+        let mut level = start[(b >> TONE_BUCKET_SHIFT) as usize];
+        while level < 255 && x >= t[level as usize] {
+            level += 1;
+        }
+        level
+    };
     [enc(c.x), enc(c.y), enc(c.z)]
 }
 
