@@ -35,6 +35,32 @@ fn render(scene: &str, out: &Path, extra: &[&str]) {
     assert!(o.status.success(), "{}", text(&o));
 }
 
+/// A stride or crop `train-detector` cannot train is refused by name before
+/// any data is read or any folder made.
+#[test]
+fn train_detector_refuses_a_stride_it_has_no_network_for() {
+    let out = tmp("bad-stride");
+    for (flag, said) in [
+        ("--stride 5", "--stride must be 4 or 8, got 5"),
+        (
+            "--crop 60",
+            "--crop must be a multiple of 8, at least 32, got 60",
+        ),
+    ] {
+        let o = cli(&format!(
+            "train-detector --data {} --out {} {flag}",
+            out.join("no-such-render").display(),
+            out.display()
+        ));
+        assert!(
+            !o.status.success() && text(&o).contains(said),
+            "{}",
+            text(&o)
+        );
+        assert!(!out.exists(), "{} was made", out.display());
+    }
+}
+
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
@@ -78,6 +104,20 @@ fn detector_trains_and_counts_end_to_end() {
     );
     let report = &json(&det.join("report.json"))["report"];
     assert!(report["map50"].as_f64().is_some(), "{report}");
+    // The AP over the well-seen fish, and both per val clip.
+    assert!(report["map50_well_seen"].as_f64().is_some(), "{report}");
+    let by_clip = report["map50_by_clip"].as_array().unwrap();
+    assert_eq!(by_clip.len(), report["val_clips"].as_array().unwrap().len());
+    for c in by_clip {
+        let (fish, seen) = (
+            c["fish"].as_u64().unwrap(),
+            c["well_seen"].as_u64().unwrap(),
+        );
+        assert!(
+            seen <= fish && (0.0..=1.0).contains(&c["map50"].as_f64().unwrap()),
+            "{c}"
+        );
+    }
     let (first, last) = (
         report["first_loss"].as_f64().unwrap(),
         report["final_loss"].as_f64().unwrap(),

@@ -11,7 +11,7 @@
 //! view (`view_fov_deg`, `view_size`, `window`) and whatever the caller adds
 //! (data, budget, metrics).
 
-use crate::model::{DetectorNet, LAYERS, NORM_EPS, NORM_KERNEL, SLOPE, STRIDE};
+use crate::model::{DetectorNet, NORM_EPS, NORM_KERNEL, SLOPE, layers};
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
 use deepfoids_learn::onnx::build::{float, int, ints, node, tensor, value_info};
@@ -129,7 +129,8 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
         init: vec![],
     };
     let mut x = g.local_contrast("image");
-    for (i, (conv, &(_, s, d))) in net.body.iter().zip(LAYERS.iter()).enumerate() {
+    let stride = net.stride();
+    for (i, (conv, &(_, s, d))) in net.body.iter().zip(layers(stride)).enumerate() {
         let name = format!("body.{i}");
         g.conv(&name, conv, &x, &format!("{name}.out"), s, d);
         let act = format!("{name}.act");
@@ -153,7 +154,7 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
     g.conv("boxes", &net.boxes, &x, "boxes", 1, 1);
     let mut props = vec![
         ("format".to_string(), FORMAT.to_string()),
-        ("stride".to_string(), STRIDE.to_string()),
+        ("stride".to_string(), stride.to_string()),
         ("classes".to_string(), "fish".to_string()),
     ];
     props.extend(metadata.iter().cloned());
@@ -165,7 +166,9 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
         producer_version: env!("CARGO_PKG_VERSION").into(),
         domain: String::new(),
         model_version: 1,
-        doc_string: "DeepFoids one-class fish detector (CenterNet-style heatmap and boxes, stride 8)".into(),
+        doc_string: format!(
+            "DeepFoids one-class fish detector (CenterNet-style heatmap and boxes, stride {stride})"
+        ),
         graph: Some(GraphProto {
             node: g.nodes,
             name: "deepfoids_fish_detector".into(),

@@ -27,7 +27,7 @@ use crate::error::{CountError, Result};
 use crate::eval::average_precision_ignoring;
 use crate::export::export_detector;
 use crate::frames::read_image;
-use crate::model::{DetectorNet, DetectorNetConfig, STRIDE};
+use crate::model::{DetectorNet, DetectorNetConfig, STRIDE, STRIDES};
 use crate::preprocess::{InputCamera, PerspectiveView, median_blur};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::prelude::*;
@@ -55,6 +55,8 @@ pub struct TrainConfig {
     pub lr: f64,
     /// Channels of the first layer; 16.
     pub base: usize,
+    /// Output stride of the heatmap, 4 or 8 ([`crate::model::layers`]); 8.
+    pub stride: usize,
     /// Seed of the crops, flips and weights; 0.
     pub seed: u64,
     /// Pre-processing shared with `count` (fisheye view, median, window).
@@ -69,6 +71,27 @@ pub struct TrainConfig {
     pub faint_as_water: bool,
 }
 
+impl TrainConfig {
+    /// The values [`train`] refuses, named as the command line names them.
+    pub fn check(&self) -> Result<()> {
+        if !STRIDES.contains(&self.stride) {
+            return Err(CountError::Value {
+                what: "--stride",
+                allowed: "4 or 8",
+                value: self.stride.to_string(),
+            });
+        }
+        if !self.crop.is_multiple_of(8) || self.crop < 32 {
+            return Err(CountError::Value {
+                what: "--crop",
+                allowed: "a multiple of 8, at least 32",
+                value: self.crop.to_string(),
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for TrainConfig {
     fn default() -> Self {
         Self {
@@ -78,6 +101,7 @@ impl Default for TrainConfig {
             crop: 256,
             lr: 2e-3,
             base: 16,
+            stride: STRIDE,
             seed: 0,
             count: CountConfig::default(),
             max_frames: 0,
@@ -92,6 +116,9 @@ pub struct Sample {
     pub image: RgbImage,
     /// The labelled (detectable) fish.
     pub boxes: Vec<Detection>,
+    /// Each labelled fish's visibility (its visible share of its silhouette
+    /// unoccluded, the renderer's `visibility`), in the order of `boxes`.
+    pub visibility: Vec<f32>,
     /// Labelled fish under 2 px: neither positives nor negatives.
     pub ignore: Vec<Detection>,
     /// Fish in view that the renderer found too faint to label (contrast
@@ -156,6 +183,13 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                 .iter()
                 .filter_map(|a| a["fish_id"].as_u64().map(|f| f as u16 + 1))
                 .collect();
+            let visibility_of: HashMap<u16, f32> = anns
+                .iter()
+                .filter_map(|a| {
+                    let id = a["fish_id"].as_u64()? as u16 + 1;
+                    Some((id, a["visibility"].as_f64().unwrap_or(1.0) as f32))
+                })
+                .collect();
             let mask_file = dir.join(
                 im["file_name"]
                     .as_str()
@@ -182,7 +216,7 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                 let seen = view.apply_mask(read_mask()?.as_raw());
                 (
                     view.apply(&raw),
-                    boxes_of_mask(&seen, view.size, view.size, &ids),
+                    id_boxes_of_mask(&seen, view.size, view.size, &ids),
                     faint_boxes(&seen, view.size, view.size, &ids),
                 )
             } else {
@@ -194,12 +228,16 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                             .iter()
                             .filter_map(|x| x.as_f64().map(|v| v as f32))
                             .collect();
-                        (b.len() == 4).then(|| Detection {
-                            x0: b[0],
-                            y0: b[1],
-                            x1: b[0] + b[2],
-                            y1: b[1] + b[3],
-                            score: 1.0,
+                        let id = a["fish_id"].as_u64().map_or(0, |f| f as u16 + 1);
+                        (b.len() == 4).then(|| {
+                            let d = Detection {
+                                x0: b[0],
+                                y0: b[1],
+                                x1: b[0] + b[2],
+                                y1: b[1] + b[3],
+                                score: 1.0,
+                            };
+                            (id, d)
                         })
                     })
                     .collect();
@@ -212,13 +250,17 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                 (raw, boxes, faint)
             };
             // A labelled fish under 2 px is ignored too: not a fish to find.
-            let (boxes, small): (Vec<Detection>, Vec<Detection>) = boxes
+            let (boxes, small): (Vec<IdBox>, Vec<IdBox>) = boxes
                 .into_iter()
-                .partition(|b| b.x1 - b.x0 >= 2.0 && b.y1 - b.y0 >= 2.0);
+                .partition(|(_, b)| b.x1 - b.x0 >= 2.0 && b.y1 - b.y0 >= 2.0);
             let sample = Sample {
                 image,
-                boxes,
-                ignore: small,
+                visibility: boxes
+                    .iter()
+                    .map(|(id, _)| visibility_of.get(id).copied().unwrap_or(1.0))
+                    .collect(),
+                boxes: boxes.into_iter().map(|(_, b)| b).collect(),
+                ignore: small.into_iter().map(|(_, b)| b).collect(),
                 faint,
                 clip: format!("{}#{}", dir.display(), im["clip"]),
             };
@@ -234,6 +276,17 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
 
 /// Boxes `[x0, y0, x1, y1)` of each id of `ids` in a `w × h` mask.
 pub fn boxes_of_mask(mask: &[u16], w: u32, h: u32, ids: &HashSet<u16>) -> Vec<Detection> {
+    id_boxes_of_mask(mask, w, h, ids)
+        .into_iter()
+        .map(|(_, b)| b)
+        .collect()
+}
+
+/// A box and the id of its fish in the instance mask (fish index + 1).
+type IdBox = (u16, Detection);
+
+/// [`boxes_of_mask`] with each box's id, by increasing id.
+pub fn id_boxes_of_mask(mask: &[u16], w: u32, h: u32, ids: &HashSet<u16>) -> Vec<IdBox> {
     let mut b: HashMap<u16, [u32; 4]> = HashMap::new();
     for y in 0..h {
         for x in 0..w {
@@ -251,12 +304,15 @@ pub fn boxes_of_mask(mask: &[u16], w: u32, h: u32, ids: &HashSet<u16>) -> Vec<De
     let mut v: Vec<_> = b.into_iter().collect();
     v.sort_by_key(|(id, _)| *id);
     v.into_iter()
-        .map(|(_, [x0, y0, x1, y1])| Detection {
-            x0: x0 as f32,
-            y0: y0 as f32,
-            x1: x1 as f32,
-            y1: y1 as f32,
-            score: 1.0,
+        .map(|(id, [x0, y0, x1, y1])| {
+            let d = Detection {
+                x0: x0 as f32,
+                y0: y0 as f32,
+                x1: x1 as f32,
+                y1: y1 as f32,
+                score: 1.0,
+            };
+            (id, d)
         })
         .collect()
 }
@@ -301,10 +357,11 @@ pub struct Targets {
     pub weight: Vec<f32>,
 }
 
-/// The targets of a crop's labelled fish `boxes` and ignored fish `ignore`.
-pub fn targets(boxes: &[Detection], ignore: &[Detection], crop: u32) -> Targets {
-    let g = (crop as usize) / STRIDE;
-    let s = STRIDE as f32;
+/// The targets of a crop's labelled fish `boxes` and ignored fish `ignore`
+/// on the grid of output stride `stride`.
+pub fn targets(boxes: &[Detection], ignore: &[Detection], crop: u32, stride: usize) -> Targets {
+    let g = (crop as usize) / stride;
+    let s = stride as f32;
     let (mut heat, mut reg, mut mask) = (
         vec![0f32; g * g],
         vec![0f32; 4 * g * g],
@@ -454,6 +511,10 @@ pub struct Report {
     pub final_loss: f64,
     /// AP at IoU 0.5 on the val split through the exported ONNX (tract).
     pub map50: Option<f64>,
+    /// The same over the well-seen fish ([`Evaluation::map50_well_seen`]).
+    pub map50_well_seen: Option<f64>,
+    /// Per val clip, over all and over the well-seen fish.
+    pub map50_by_clip: Vec<ClipAp>,
     /// The confidence chosen on the val split ([`Evaluation::conf`]), written
     /// into the ONNX metadata as `confidence`.
     pub conf: Option<f32>,
@@ -474,13 +535,7 @@ pub fn train(
     out: &Path,
     mut log: impl FnMut(&str),
 ) -> Result<Report> {
-    if !cfg.crop.is_multiple_of(STRIDE as u32) || cfg.crop < 32 {
-        return Err(CountError::Value {
-            what: "--crop",
-            allowed: "a multiple of 8, at least 32",
-            value: cfg.crop.to_string(),
-        });
-    }
+    cfg.check()?;
     if data.train.is_empty() {
         return Err(CountError::Train(
             "no training frames: every clip of the --data folders is in their val split".into(),
@@ -490,12 +545,15 @@ pub fn train(
     let device = Device::flex();
     device.seed(cfg.seed);
     let dev = device.clone().autodiff();
-    let mut model: DetectorNet = DetectorNetConfig::new().with_base(cfg.base).init(&dev);
+    let mut model: DetectorNet = DetectorNetConfig::new()
+        .with_base(cfg.base)
+        .with_stride(cfg.stride)
+        .init(&dev);
     let mut optim = AdamConfig::new().init();
     let mut rng = Rng(cfg.seed ^ 0xC0FF_EE00);
     let start = Instant::now();
     let (c, b) = (cfg.crop as usize, cfg.batch.max(1));
-    let g = c / STRIDE;
+    let g = c / cfg.stride;
     let (mut last, mut first) = (0.0, 0.0);
     let mut steps = 0;
     for step in 0..cfg.steps {
@@ -507,7 +565,7 @@ pub fn train(
             let s = &data.train[rng.below(data.train.len() as u64) as usize];
             let (img, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, &mut rng);
             x.extend(to_chw(&img));
-            let t = targets(&boxes, &ignore, cfg.crop);
+            let t = targets(&boxes, &ignore, cfg.crop, cfg.stride);
             ht.extend(t.heat);
             bt.extend(t.reg);
             mk.extend(t.mask);
@@ -585,8 +643,13 @@ pub fn train(
         let detector = Detector::load(&onnx_path, cfg.count.window)?;
         let ev = evaluate(detector, &data.val, &cfg.count, None)?;
         log(&format!(
-            "val: mAP50 {:.3}; confidence {} (the least clip error); count error {:.2} fish per frame (labelled {:.1})",
-            ev.map50, ev.conf, ev.count_mae, ev.truth_mean
+            "val: mAP50 {:.3} ({:.3} on the fish at least {:.0} % visible); confidence {} (the least clip error); count error {:.2} fish per frame (labelled {:.1})",
+            ev.map50,
+            ev.map50_well_seen,
+            WELL_SEEN * 100.0,
+            ev.conf,
+            ev.count_mae,
+            ev.truth_mean
         ));
         // `count`'s default confidence for this detector (`confidence`).
         meta.push(("confidence".to_string(), ev.conf.to_string()));
@@ -605,6 +668,11 @@ pub fn train(
         first_loss: first,
         final_loss: last,
         map50: evaluation.as_ref().map(|e| e.map50),
+        map50_well_seen: evaluation.as_ref().map(|e| e.map50_well_seen),
+        map50_by_clip: evaluation
+            .as_ref()
+            .map(|e| e.map50_by_clip.clone())
+            .unwrap_or_default(),
         conf: evaluation.as_ref().map(|e| e.conf),
         val_count_mae: evaluation.as_ref().map(|e| e.count_mae),
         val_count_truth_mean: evaluation.as_ref().map(|e| e.truth_mean),
@@ -631,6 +699,14 @@ fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
 pub struct Evaluation {
     /// AP at IoU 0.5 over every frame (detections ranked from confidence 0.05).
     pub map50: f64,
+    /// The same over the well-seen fish only: those with at least
+    /// [`WELL_SEEN`] of their silhouette visible; the more hidden ones are
+    /// ignored (neither to be found nor false when found), as KITTI's and
+    /// CityPersons' "reasonable" subsets leave out heavily occluded objects.
+    pub map50_well_seen: f64,
+    /// AP at IoU 0.5 per clip (in the order of `clips`): all labelled fish,
+    /// then the well-seen ones.
+    pub map50_by_clip: Vec<ClipAp>,
     /// The confidence the counts below use: the one given, else the one of
     /// [`CONF_GRID`] with the least mean |relative error| of the clips' MAX
     /// estimates.
@@ -644,6 +720,53 @@ pub struct Evaluation {
     pub truth_mean: f64,
     /// Per clip at `conf`: the MAX estimate against the most fish labelled in one frame.
     pub clips: Vec<ClipCount>,
+}
+
+/// The visible share of its silhouette from which a labelled fish counts as
+/// well seen (see [`Evaluation::map50_well_seen`]).
+pub const WELL_SEEN: f32 = 0.5;
+
+/// One clip's AP50, over all labelled fish and over the well-seen ones.
+#[derive(Clone, Debug, Serialize)]
+pub struct ClipAp {
+    pub clip: String,
+    pub map50: f64,
+    pub map50_well_seen: f64,
+    /// Labelled fish over the clip's frames, and how many of them are well seen.
+    pub fish: usize,
+    pub well_seen: usize,
+}
+
+/// AP50 of `dets` on `samples` (`idx` picks the frames): over all labelled
+/// fish, and over the well-seen ones with the others ignored. Also returns
+/// the two fish counts.
+fn ap_pair(samples: &[Sample], dets: &[Vec<Detection>], idx: &[usize]) -> (f64, f64, usize, usize) {
+    let (mut d, mut all, mut seen, mut ign, mut ign_seen) =
+        (vec![], vec![], vec![], vec![], vec![]);
+    for &i in idx {
+        let s = &samples[i];
+        let base: Vec<Detection> = [s.ignore.as_slice(), &s.faint].concat();
+        let (mut good, mut hidden) = (vec![], base.clone());
+        for (b, &v) in s.boxes.iter().zip(&s.visibility) {
+            if v >= WELL_SEEN {
+                good.push(*b);
+            } else {
+                hidden.push(*b);
+            }
+        }
+        d.push(dets[i].clone());
+        all.push(s.boxes.clone());
+        seen.push(good);
+        ign.push(base);
+        ign_seen.push(hidden);
+    }
+    let count = |v: &[Vec<Detection>]| v.iter().map(Vec::len).sum::<usize>();
+    (
+        average_precision_ignoring(&d, &all, &ign, 0.5),
+        average_precision_ignoring(&d, &seen, &ign_seen, 0.5),
+        count(&all),
+        count(&seen),
+    )
 }
 
 /// One clip's count against its labels.
@@ -726,13 +849,11 @@ pub fn evaluate(
         ..cfg.clone()
     };
     let counter = Counter::new(low, detector)?;
-    let (mut dets, mut truth, mut ignore, mut scores) = (vec![], vec![], vec![], vec![]);
+    let (mut dets, mut scores) = (vec![], vec![]);
     for s in samples {
         let (d, _) = counter.detect(&s.image)?;
         scores.push(d.iter().map(|x| x.score).collect::<Vec<f32>>());
         dets.push(d);
-        truth.push(s.boxes.clone());
-        ignore.push([s.ignore.as_slice(), &s.faint].concat());
     }
     let (chosen, clip_error_by_conf) = choose_conf(samples, &scores);
     let conf = conf.unwrap_or(chosen);
@@ -743,10 +864,33 @@ pub fn evaluate(
         tot += s.boxes.len() as f64;
     }
     let k = samples.len().max(1) as f64;
+    let every: Vec<usize> = (0..samples.len()).collect();
+    let (map50, map50_well_seen, _, _) = ap_pair(samples, &dets, &every);
+    let clips = clip_counts(samples, &scores, conf);
+    let map50_by_clip = clips
+        .iter()
+        .map(|c| {
+            let idx: Vec<usize> = every
+                .iter()
+                .copied()
+                .filter(|&i| samples[i].clip == c.clip)
+                .collect();
+            let (map50, map50_well_seen, fish, well_seen) = ap_pair(samples, &dets, &idx);
+            ClipAp {
+                clip: c.clip.clone(),
+                map50,
+                map50_well_seen,
+                fish,
+                well_seen,
+            }
+        })
+        .collect();
     Ok(Evaluation {
-        map50: average_precision_ignoring(&dets, &truth, &ignore, 0.5),
+        map50,
+        map50_well_seen,
+        map50_by_clip,
         conf,
-        clips: clip_counts(samples, &scores, conf),
+        clips,
         clip_error_by_conf,
         count_mae: err / k,
         truth_mean: tot / k,
@@ -772,9 +916,11 @@ pub fn score_detector(
     let own = detector.meta::<f32>("confidence");
     let ev = evaluate(detector, val, cfg, own)?;
     let mut text = format!(
-        "{}: mAP50 {:.3} on {} val frames; at confidence {} ({}) count error {:.2} fish per frame (labelled {:.1})\nclip,frames,labelled_max,estimate,relative_error\n",
+        "{}: mAP50 {:.3} ({:.3} on the fish at least {:.0} % visible) on {} val frames; at confidence {} ({}) count error {:.2} fish per frame (labelled {:.1})\nclip,frames,labelled_max,estimate,relative_error,map50,map50_well_seen,fish,well_seen\n",
         onnx.display(),
         ev.map50,
+        ev.map50_well_seen,
+        WELL_SEEN * 100.0,
         val.len(),
         ev.conf,
         if own.is_some() {
@@ -785,10 +931,18 @@ pub fn score_detector(
         ev.count_mae,
         ev.truth_mean
     );
-    for c in &ev.clips {
+    for (c, ap) in ev.clips.iter().zip(&ev.map50_by_clip) {
         text += &format!(
-            "{},{},{},{},{:+.3}\n",
-            c.clip, c.frames, c.truth_max, c.estimate, c.relative_error
+            "{},{},{},{},{:+.3},{:.3},{:.3},{},{}\n",
+            c.clip,
+            c.frames,
+            c.truth_max,
+            c.estimate,
+            c.relative_error,
+            ap.map50,
+            ap.map50_well_seen,
+            ap.fish,
+            ap.well_seen
         );
     }
     std::fs::create_dir_all(out).map_err(CountError::io(out))?;
@@ -811,6 +965,7 @@ mod tests {
         let sample = |n: usize, clip: &str| Sample {
             image: RgbImage::new(8, 8),
             boxes: vec![Detection::from_centre(4.0, 4.0, 2.0, 2.0, 1.0); n],
+            visibility: vec![1.0; n],
             ignore: vec![],
             faint: vec![],
             clip: clip.into(),
@@ -831,12 +986,49 @@ mod tests {
     /// A 16-px frame cropped whole (no room to move): a labelled fish, a
     /// sub-2-px one (ignored) and a faint one. The faint fish joins the
     /// ignored unless it is trained as water; the labelled one always stays.
+    /// One frame, two labelled fish: at x 0 (fully visible) and at x 50 (30 %
+    /// visible). One detection, on the first. Over all fish: P 1 at R 1/2, so
+    /// AP 1/2. Over the well-seen fish the hidden one is ignored: AP 1. A
+    /// second detection, on the hidden fish, is a true positive over all fish
+    /// (AP 1) and ignored over the well-seen ones (AP 1).
+    #[test]
+    fn well_seen_ap_ignores_the_hidden_fish() {
+        let at = |x: f32, score: f32| Detection {
+            x0: x,
+            y0: 0.0,
+            x1: x + 10.0,
+            y1: 10.0,
+            score,
+        };
+        let s = Sample {
+            image: RgbImage::new(1, 1),
+            boxes: vec![at(0.0, 1.0), at(50.0, 1.0)],
+            visibility: vec![1.0, 0.3],
+            ignore: vec![],
+            faint: vec![],
+            clip: "c".into(),
+        };
+        let samples = [s];
+        let (all, seen, n, n_seen) = ap_pair(&samples, &[vec![at(1.0, 0.9)]], &[0]);
+        assert_eq!((n, n_seen), (2, 1));
+        assert!((all - 0.5).abs() < 1e-9, "{all}");
+        assert!((seen - 1.0).abs() < 1e-9, "{seen}");
+        let both = vec![at(1.0, 0.9), at(51.0, 0.8)];
+        let (all, seen, _, _) = ap_pair(&samples, &[both], &[0]);
+        assert!((all - 1.0).abs() < 1e-9 && (seen - 1.0).abs() < 1e-9);
+        // A detection on water still counts against the well-seen AP:
+        // 0.95 FP (P 0), 0.9 TP (P 1/2, R 1): AP 1/2.
+        let (_, seen, _, _) = ap_pair(&samples, &[vec![at(200.0, 0.95), at(1.0, 0.9)]], &[0]);
+        assert!((seen - 0.5).abs() < 1e-9, "{seen}");
+    }
+
     #[test]
     fn faint_fish_are_ignored_or_water() {
         let at = |x: f32| Detection::from_centre(x, 8.0, 4.0, 4.0, 1.0);
         let s = Sample {
             image: RgbImage::new(16, 16),
             boxes: vec![at(4.0)],
+            visibility: vec![1.0],
             ignore: vec![Detection::from_centre(8.0, 8.0, 1.0, 1.0, 1.0)],
             faint: vec![at(12.0)],
             clip: "c".into(),
@@ -858,7 +1050,7 @@ mod tests {
             reg: r,
             mask: m,
             weight,
-        } = targets(&[b], &[], 32);
+        } = targets(&[b], &[], 32, 8);
         assert!(weight.iter().all(|&w| w == 1.0));
         let k = 4 + 2;
         assert_eq!(h[k], 1.0);
@@ -871,7 +1063,12 @@ mod tests {
         );
         assert_eq!(m.iter().sum::<f32>(), 4.0);
         // A centre outside the crop gives nothing.
-        let t = targets(&[Detection::from_centre(40.0, 5.0, 8.0, 8.0, 1.0)], &[], 32);
+        let t = targets(
+            &[Detection::from_centre(40.0, 5.0, 8.0, 8.0, 1.0)],
+            &[],
+            32,
+            8,
+        );
         assert!(t.heat.iter().all(|&v| v == 0.0) && t.mask.iter().all(|&v| v == 0.0));
         // A faint fish over x 0–10, y 17–23 covers cells x 0–1, y 2 (cell k = 8, 9):
         // their negative loss is off; one over the labelled fish's centre cell
@@ -883,7 +1080,7 @@ mod tests {
             y1: 23.0,
             score: 1.0,
         };
-        let t = targets(&[b], &[faint], 32);
+        let t = targets(&[b], &[faint], 32, 8);
         let off: Vec<usize> = (0..16).filter(|&k| t.weight[k] == 0.0).collect();
         assert_eq!(off, vec![8, 9]);
         let over = Detection {
@@ -893,10 +1090,28 @@ mod tests {
             y1: 15.0,
             score: 1.0,
         };
-        let t = targets(&[b], &[over], 32);
+        let t = targets(&[b], &[over], 32, 8);
         let off: Vec<usize> = (0..16).filter(|&k| t.weight[k] == 0.0).collect();
         assert_eq!(off, vec![6]);
         assert_eq!((t.heat[6], t.mask[6]), (1.0, 1.0));
+        // At stride 4 the same fish is 4 × 2 cells on an 8 × 8 grid: centre
+        // (5, 3) exactly, so cell (5, 3) = 29 with offsets (0, 0), sizes
+        // ln 4 and ln 2; σ = max(0.15 · 2, 0.5) = 0.5, so its neighbour
+        // holds exp(−1 / 0.5) = exp(−2).
+        let t = targets(&[b], &[], 32, 4);
+        let (k, plane) = (3 * 8 + 5, 64);
+        assert_eq!(t.heat.len(), plane);
+        assert_eq!(t.heat[k], 1.0);
+        assert!((t.heat[k + 1] - (-2f32).exp()).abs() < 1e-6);
+        assert_eq!(
+            [
+                t.reg[k],
+                t.reg[plane + k],
+                t.reg[2 * plane + k],
+                t.reg[3 * plane + k]
+            ],
+            [0.0, 0.0, 4f32.ln(), 2f32.ln()]
+        );
     }
 
     #[test]

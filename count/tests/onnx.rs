@@ -167,16 +167,31 @@ fn files_that_are_not_detectors_are_named() {
 /// the running-sum `local_contrast` fed instead).
 #[test]
 fn our_export_matches_burn() {
+    for stride in [8, 4] {
+        export_matches_burn(stride);
+    }
+}
+
+fn export_matches_burn(stride: usize) {
     let dev = Device::flex();
-    let net = DetectorNetConfig::new().with_base(4).init(&dev);
-    let p = tmp("ours.onnx");
+    let net = DetectorNetConfig::new()
+        .with_base(4)
+        .with_stride(stride)
+        .init(&dev);
+    assert_eq!(net.stride(), stride);
+    let p = tmp(&format!("ours-{stride}.onnx"));
     std::fs::write(&p, export_detector(&net, &[])).unwrap();
     let img = image::RgbImage::from_fn(64, 64, |x, y| {
         image::Rgb([(x * 4) as u8, (y * 4) as u8, ((x * 7 + y * 13) % 256) as u8])
     });
     let chw = to_chw(&img);
     let whole = Detector::load_as_exported(&p, 64).unwrap();
-    assert_eq!(whole.format, DetectorFormat::Ours { stride: 8 });
+    assert_eq!(
+        whole.format,
+        DetectorFormat::Ours {
+            stride: stride as u32
+        }
+    );
     assert_eq!(whole.cuts_local_contrast, None);
     let cut = Detector::load(&p, 64).unwrap();
     assert_eq!(cut.cuts_local_contrast, Some((NORM_KERNEL, NORM_EPS)));
@@ -186,11 +201,11 @@ fn our_export_matches_burn() {
         whole.run_raw(&chw).unwrap(),
         cut.run_raw(&cut_input).unwrap(),
     ] {
-        check_against_burn(&net, &chw, &tract);
+        check_against_burn(&net, &chw, &tract, stride);
     }
 }
 
-fn check_against_burn(net: &DetectorNet, chw: &[f32], tract: &[Vec<f32>]) {
+fn check_against_burn(net: &DetectorNet, chw: &[f32], tract: &[Vec<f32>], stride: usize) {
     let dev = Device::flex();
     let chw = chw.to_vec();
     let x = Tensor::<4>::from_data(TensorData::new(chw, [1, 3, 64, 64]), &dev);
@@ -200,7 +215,8 @@ fn check_against_burn(net: &DetectorNet, chw: &[f32], tract: &[Vec<f32>]) {
         .try_into_vec()
         .unwrap();
     let boxes: Vec<f32> = boxes.into_data().try_into_vec().unwrap();
-    assert_eq!((tract[0].len(), tract[1].len()), (64, 256));
+    let cells = (64 / stride) * (64 / stride);
+    assert_eq!((tract[0].len(), tract[1].len()), (cells, 4 * cells));
     let max_diff = |a: &[f32], b: &[f32]| {
         a.iter()
             .zip(b)

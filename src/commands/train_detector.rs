@@ -34,6 +34,9 @@ pub struct TrainDetectorArgs {
     /// Channels of the first layer (the network's width)
     #[arg(value_parser = whole::<usize>, long, default_value_t = TrainConfig::default().base)]
     pub base: usize,
+    /// Output stride of the heatmap: 8, or 4 for schools whose fish lie closer than 8 px in the view
+    #[arg(value_parser = whole::<usize>, long, default_value_t = TrainConfig::default().stride)]
+    pub stride: usize,
     #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
     /// Field of view of the perspective view fisheye frames are corrected to (degrees), as `count`'s
@@ -67,6 +70,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         crop: args.crop,
         lr: args.lr,
         base: args.base,
+        stride: args.stride,
         seed: args.seed,
         max_frames: args.max_frames,
         faint_as_water: !args.ignore_faint,
@@ -75,6 +79,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
     cfg.count.view_fov_deg = args.view_fov;
     cfg.count.view_size = args.view_size;
     cfg.count.validate()?;
+    cfg.check()?;
     let _lock = deepfoids_experiments::lock_dir(&args.out)?;
     let t = Instant::now();
     let data = load_data(&args.data, &cfg.count, cfg.max_frames)?;
