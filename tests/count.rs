@@ -35,7 +35,7 @@ fn render(scene: &str, out: &Path, extra: &[&str]) {
     assert!(o.status.success(), "{}", text(&o));
 }
 
-/// A stride or crop `train-detector` cannot train is refused by name before
+/// A stride, crop or NMS IoU `train-detector` cannot use is refused by name before
 /// any data is read or any folder made.
 #[test]
 fn train_detector_refuses_a_stride_it_has_no_network_for() {

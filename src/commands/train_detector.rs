@@ -45,6 +45,9 @@ pub struct TrainDetectorArgs {
     /// Side of that view (pixels), as `count`'s
     #[arg(value_parser = whole::<u32>, long, default_value_t = 832)]
     pub view_size: u32,
+    /// IoU above which the one NMS merges boxes when the val split is scored, as `count`'s
+    #[arg(long, default_value_t = 0.5)]
+    pub iou: f32,
     /// Use at most this many training frames (0: all)
     #[arg(value_parser = whole::<usize>, long, default_value_t = 0)]
     pub max_frames: usize,
@@ -78,6 +81,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
     };
     cfg.count.view_fov_deg = args.view_fov;
     cfg.count.view_size = args.view_size;
+    cfg.count.iou = args.iou;
     cfg.count.validate()?;
     cfg.check()?;
     let _lock = deepfoids_experiments::lock_dir(&args.out)?;
