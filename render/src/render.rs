@@ -920,15 +920,14 @@ fn fish_radiance(
     depth: f32,
     shade: Vec3,
 ) -> Vec3 {
-    let water = &cond.water;
     let t = depth * ray.k;
     let d = -(cam.position.y + ray.vy * t);
     if cam.position.y > 0.0 || d < 0.0 {
-        return fish_radiance_by_terms(cam, cond, ray, depth, shade);
+        return fish_radiance_by_terms(cond, ray, t, d, shade);
     }
     let e = (-ray.x * t).exp();
     let lit = shade * cam_dim * e;
-    if !water.scattering {
+    if !cond.water.scattering {
         return lit;
     }
     let along = |x: f32, e: f32| if x.abs() < 1e-5 { t } else { (1.0 - e) / x };
@@ -940,19 +939,12 @@ fn fish_radiance(
         )
 }
 
-/// [`fish_radiance`] term by term: `exp(−K·d)`, the transmittance and the
-/// in-scattering each with their own exponentials.
-fn fish_radiance_by_terms(
-    cam: &Camera,
-    cond: &Conditions,
-    ray: &PixelRay,
-    depth: f32,
-    shade: Vec3,
-) -> Vec3 {
+/// [`fish_radiance`] term by term, `t` metres along the ray at depth `d`
+/// (negative above the surface, where the light is not dimmed): `exp(−K·d)`,
+/// the transmittance and the in-scattering each with their own exponentials.
+fn fish_radiance_by_terms(cond: &Conditions, ray: &PixelRay, t: f32, d: f32, shade: Vec3) -> Vec3 {
     let water = &cond.water;
-    let t = depth * ray.k;
-    let d = (-(cam.position.y + ray.vy * t)).max(0.0);
-    let l = shade * (-water.k * d).exp();
+    let l = shade * (-water.k * d.max(0.0)).exp();
     let scattered = if water.scattering {
         inscatter_along(ray.j0, ray.x, t)
     } else {
@@ -1304,7 +1296,9 @@ mod tests {
                 for depth in [0.05, 0.5, 2.0, 5.5, 20.0] {
                     let shade = Vec3::new(0.3, 0.5, 0.7);
                     let one = fish_radiance(&cam, &cond, cam_dim, &ray, depth, shade);
-                    let terms = fish_radiance_by_terms(&cam, &cond, &ray, depth, shade);
+                    let t = depth * ray.k;
+                    let d = -(cam.position.y + ray.vy * t);
+                    let terms = fish_radiance_by_terms(&cond, &ray, t, d, shade);
                     let err =
                         ((one - terms).abs() / terms.abs().max(Vec3::splat(1e-12))).max_element();
                     assert!(err < 1e-5, "{one} vs {terms} at ({x}, {y}), depth {depth}");
