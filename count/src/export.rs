@@ -11,7 +11,7 @@
 //! view (`view_fov_deg`, `view_size`, `window`) and whatever the caller adds
 //! (data, budget, metrics).
 
-use crate::model::{DetectorNet, NORM_EPS, NORM_KERNEL, SLOPE, layers};
+use crate::model::{DetectorNet, NORM_EPS, NORM_KERNEL, SLOPE};
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
 use deepfoids_learn::onnx::build::{float, int, ints, node, tensor, value_info};
@@ -130,9 +130,16 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
     };
     let mut x = g.local_contrast("image");
     let stride = net.stride();
-    for (i, (conv, &(_, s, d))) in net.body.iter().zip(layers(stride)).enumerate() {
+    for (i, conv) in net.body.iter().enumerate() {
         let name = format!("body.{i}");
-        g.conv(&name, conv, &x, &format!("{name}.out"), s, d);
+        g.conv(
+            &name,
+            conv,
+            &x,
+            &format!("{name}.out"),
+            conv.stride[0],
+            conv.dilation[0],
+        );
         let act = format!("{name}.act");
         g.nodes.push(node(
             "LeakyRelu",

@@ -182,10 +182,9 @@ impl DetectorNet {
         self.body[0].weight.dims()[0]
     }
 
-    /// Output stride: 4 when the fourth layer keeps the resolution, else 8.
+    /// Output stride: the product of the body layers' strides.
     pub fn stride(&self) -> usize {
-        let [out, ..] = self.body[3].weight.dims();
-        if out == 2 * self.base() { 4 } else { 8 }
+        self.body.iter().map(|c| c.stride[0]).product()
     }
 }
 

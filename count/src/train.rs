@@ -179,10 +179,7 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                 .unwrap_or_default();
             let raw = median_blur(&read_image(&file)?, cfg.median);
             let lens = &im["lens"];
-            let ids: HashSet<u16> = anns
-                .iter()
-                .filter_map(|a| a["fish_id"].as_u64().map(|f| f as u16 + 1))
-                .collect();
+            // Each labelled fish's mask id (fish index + 1) and visibility.
             let visibility_of: HashMap<u16, f32> = anns
                 .iter()
                 .filter_map(|a| {
@@ -190,6 +187,7 @@ pub fn load_data(dirs: &[PathBuf], cfg: &CountConfig, max_train: usize) -> Resul
                     Some((id, a["visibility"].as_f64().unwrap_or(1.0) as f32))
                 })
                 .collect();
+            let ids: HashSet<u16> = visibility_of.keys().copied().collect();
             let mask_file = dir.join(
                 im["file_name"]
                     .as_str()
