@@ -138,60 +138,20 @@ mod tests {
     #[test]
     fn edge_rule_by_hand() {
         let img = (1280, 720);
+        let cut =
+            |fish: &Detection, x, y| cut_by_inner_edge(fish, Window { x, y }, 416, 208, img, 2.0);
         let fish = b(206.0, 100.0, 246.0, 120.0, 0.9);
-        assert!(cut_by_inner_edge(
-            &fish,
-            Window { x: 208, y: 0 },
-            416,
-            208,
-            img,
-            2.0
-        ));
-        assert!(!cut_by_inner_edge(
-            &fish,
-            Window { x: 0, y: 0 },
-            416,
-            208,
-            img,
-            2.0
-        ));
+        assert!(cut(&fish, 208, 0));
+        assert!(!cut(&fish, 0, 0));
         let big = b(208.0, 100.0, 508.0, 120.0, 0.9);
-        assert!(!cut_by_inner_edge(
-            &big,
-            Window { x: 208, y: 0 },
-            416,
-            208,
-            img,
-            2.0
-        ));
+        assert!(!cut(&big, 208, 0));
         let at_border = b(0.0, 0.0, 30.0, 20.0, 0.9);
-        assert!(!cut_by_inner_edge(
-            &at_border,
-            Window { x: 0, y: 0 },
-            416,
-            208,
-            img,
-            2.0
-        ));
+        assert!(!cut(&at_border, 0, 0));
         // Bottom edge of the window at y = 0 is y = 416 < 720: inner.
         let low = b(100.0, 400.0, 130.0, 416.0, 0.9);
-        assert!(cut_by_inner_edge(
-            &low,
-            Window { x: 0, y: 0 },
-            416,
-            208,
-            img,
-            2.0
-        ));
+        assert!(cut(&low, 0, 0));
         // The flush window at y = 304 ends at 720: the image border.
         let bottom = b(100.0, 700.0, 130.0, 720.0, 0.9);
-        assert!(!cut_by_inner_edge(
-            &bottom,
-            Window { x: 0, y: 304 },
-            416,
-            208,
-            img,
-            2.0
-        ));
+        assert!(!cut(&bottom, 0, 304));
     }
 }

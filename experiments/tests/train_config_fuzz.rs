@@ -15,7 +15,7 @@
 //! this binary holds one test.
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 use deepfoids_learn::driver::{Trainer, check_run};
-use deepfoids_learn::plan::{MAX_BUFFER, MAX_HIDDEN, MAX_LAYERS};
+use deepfoids_learn::plan::{MAX_BUFFER, MAX_HIDDEN, MAX_LAYERS, TrainConfigFile};
 use deepfoids_learn::{Backend, ProgressMode, RunArgs};
 use deepfoids_ppo::{Ppo, PpoConfig};
 use deepfoids_sac::{Sac, SacConfig};

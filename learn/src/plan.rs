@@ -40,22 +40,96 @@ pub const MAX_BUFFER: u64 = 100_000_000;
 /// Most checkpoints kept.
 pub const MAX_KEEP_CHECKPOINTS: u64 = 1_000;
 
-/// `<configs>/train/<file>`: where a trainer's config file lives.
-pub fn train_config_path(dirs: &deepfoids_env::ConfigDirs, file: &str) -> std::path::PathBuf {
-    dirs.root.join("train").join(file)
+/// One size of a training config with a hard bound: the field, its value,
+/// the allowed range, and what the tables use (e.g. "Table 4.4: 64").
+pub type SizeBound = (&'static str, u64, u64, u64, &'static str);
+
+/// A trainer's config file, `<configs>/train/<FILE>` (`ppo.toml`,
+/// `sac.toml`): read with serde, then each field checked by itself
+/// ([`validate`](Self::validate)), then the sizes' hard bounds
+/// ([`sizes`](Self::sizes)); the memory they need together is checked before
+/// a run starts (`driver::check_run`).
+pub trait TrainConfigFile: serde::de::DeserializeOwned {
+    /// The file's name under `<configs>/train/`.
+    const FILE: &'static str;
+
+    /// Each field by itself: the message names it with its allowed range
+    /// (issue 25: `time_horizon = 0` was blamed on `buffer_size`).
+    fn validate(&self, path: &Path) -> Result<(), ConfigError>;
+
+    /// The sizes with a hard bound (this module's `MAX_*`).
+    fn sizes(&self) -> Vec<SizeBound>;
+
+    /// `<configs>/train/<FILE>`.
+    fn path(dirs: &deepfoids_env::ConfigDirs) -> std::path::PathBuf {
+        dirs.root.join("train").join(Self::FILE)
+    }
+
+    /// `<configs>/train/<FILE>`, read and checked.
+    fn load(dirs: &deepfoids_env::ConfigDirs) -> Result<Self, ConfigError> {
+        let path = Self::path(dirs);
+        let cfg: Self = deepfoids_env::config::read_toml(&path)?;
+        cfg.validate(&path)?;
+        cfg.check_sizes(&path)?;
+        Ok(cfg)
+    }
+
+    /// Every [`sizes`](Self::sizes) entry lies in its range.
+    fn check_sizes(&self, path: &Path) -> Result<(), ConfigError> {
+        for (field, value, lo, hi, usual) in self.sizes() {
+            check_size(path, field, value, lo, hi, usual)?;
+        }
+        Ok(())
+    }
 }
 
-/// `<configs>/train/<file>`, read, then checked by `check` (its fields' own
-/// ranges, then the sizes' bounds).
-pub fn load_train_config<C: serde::de::DeserializeOwned>(
-    dirs: &deepfoids_env::ConfigDirs,
-    file: &str,
-    check: impl Fn(&C, &Path) -> Result<(), ConfigError>,
-) -> Result<C, ConfigError> {
-    let path = train_config_path(dirs, file);
-    let cfg: C = deepfoids_env::config::read_toml(&path)?;
-    check(&cfg, &path)?;
-    Ok(cfg)
+/// The checks both trainers' files share: every `(field, value)` of `counts`
+/// is at least 1, and `buffer_size` holds at least one minibatch.
+pub fn check_counts(
+    path: &Path,
+    counts: &[(&str, u64)],
+    batch_size: usize,
+    buffer_size: usize,
+) -> Result<(), ConfigError> {
+    if let Some((field, _)) = counts.iter().find(|(_, v)| *v == 0) {
+        return Err(ConfigError::invalid(
+            path,
+            *field,
+            "must be at least 1, got 0",
+        ));
+    }
+    if buffer_size < batch_size {
+        return Err(ConfigError::invalid(
+            path,
+            "buffer_size",
+            format!("must be at least batch_size ({batch_size}), got {buffer_size}"),
+        ));
+    }
+    Ok(())
+}
+
+/// The thesis' budgets in agent decisions per species, `[pretraining,
+/// transfer]` (§4.5.2).
+pub fn thesis_budgets() -> std::collections::BTreeMap<String, [u64; 2]> {
+    std::collections::BTreeMap::from([
+        ("coho".to_string(), [4_000_000, 1_000_000]),
+        ("yellowtail".to_string(), [2_000_000, 2_000_000]),
+        ("seabream".to_string(), [2_000_000, 2_000_000]),
+    ])
+}
+
+/// The budget of a behaviour of `species` in `phase` from a `budgets` table
+/// (2,000,000 for a species it does not name).
+pub fn budget_of(
+    budgets: &std::collections::BTreeMap<String, [u64; 2]>,
+    species: &str,
+    phase: deepfoids_env::Phase,
+) -> u64 {
+    let k = match phase {
+        deepfoids_env::Phase::Pretrain => 0,
+        deepfoids_env::Phase::Transfer => 1,
+    };
+    budgets.get(species).map_or(2_000_000, |b| b[k])
 }
 
 /// `field = value` of the training config `path` must lie in `lo..=hi`;

@@ -2,8 +2,9 @@
 //! `configs/train/ppo.toml`. A plain serde struct: unknown keys are rejected
 //! and missing keys take the documented defaults.
 
+use deepfoids_env::Phase;
 use deepfoids_env::config::ConfigError;
-use deepfoids_env::{ConfigDirs, Phase};
+use deepfoids_learn::plan::*;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -114,49 +115,27 @@ impl Default for PpoConfig {
             checkpoint_every: 100_000,
             keep_checkpoints: 5,
             progress_every: 50_000,
-            budgets: BTreeMap::from([
-                ("coho".to_string(), [4_000_000, 1_000_000]),
-                ("yellowtail".to_string(), [2_000_000, 2_000_000]),
-                ("seabream".to_string(), [2_000_000, 2_000_000]),
-            ]),
+            budgets: thesis_budgets(),
         }
     }
 }
 
-impl PpoConfig {
-    /// `<configs>/train/ppo.toml`.
-    pub fn path(dirs: &ConfigDirs) -> std::path::PathBuf {
-        deepfoids_learn::plan::train_config_path(dirs, "ppo.toml")
+impl TrainConfigFile for PpoConfig {
+    const FILE: &'static str = "ppo.toml";
+
+    #[rustfmt::skip]
+    fn sizes(&self) -> Vec<SizeBound> {
+        vec![
+            ("hidden", self.hidden as u64, 1, MAX_HIDDEN, "SPEC §8: 128"),
+            ("layers", self.layers as u64, 1, MAX_LAYERS, "SPEC §8: 4"),
+            ("epochs", self.epochs as u64, 1, MAX_EPOCHS, "Table 4.4: 3"),
+            ("time_horizon", self.time_horizon as u64, 1, MAX_TIME_HORIZON, "Table 4.4: 64"),
+            ("buffer_size", self.buffer_size as u64, 1, MAX_BUFFER, "Table 4.4: 10240"),
+            ("batch_size", self.batch_size as u64, 1, self.buffer_size as u64, "at most buffer_size; Table 4.4: 1024"),
+            ("keep_checkpoints", self.keep_checkpoints as u64, 1, MAX_KEEP_CHECKPOINTS, "5"),
+        ]
     }
 
-    /// `<configs>/train/ppo.toml`, read and checked.
-    pub fn load(dirs: &ConfigDirs) -> Result<Self, ConfigError> {
-        let check = |c: &Self, p: &std::path::Path| c.validate(p).and_then(|_| c.check_sizes(p));
-        deepfoids_learn::plan::load_train_config(dirs, "ppo.toml", check)
-    }
-
-    /// The sizes' hard bounds ([`deepfoids_learn::plan`]); the memory they
-    /// need together is checked before a run starts (`driver::check_run`).
-    pub fn check_sizes(&self, path: &std::path::Path) -> Result<(), ConfigError> {
-        use deepfoids_learn::plan::*;
-        #[rustfmt::skip]
-        let sizes = [
-            ("hidden", self.hidden, 1, MAX_HIDDEN, "SPEC §8: 128"),
-            ("layers", self.layers, 1, MAX_LAYERS, "SPEC §8: 4"),
-            ("epochs", self.epochs, 1, MAX_EPOCHS, "Table 4.4: 3"),
-            ("time_horizon", self.time_horizon, 1, MAX_TIME_HORIZON, "Table 4.4: 64"),
-            ("buffer_size", self.buffer_size, 1, MAX_BUFFER, "Table 4.4: 10240"),
-            ("batch_size", self.batch_size, 1, self.buffer_size as u64, "at most buffer_size; Table 4.4: 1024"),
-            ("keep_checkpoints", self.keep_checkpoints, 1, MAX_KEEP_CHECKPOINTS, "5"),
-        ];
-        for (field, value, lo, hi, usual) in sizes {
-            check_size(path, field, value as u64, lo, hi, usual)?;
-        }
-        Ok(())
-    }
-
-    /// Each field is checked by itself, and the message names it with its
-    /// allowed range (issue 25: `time_horizon = 0` was blamed on `buffer_size`).
     fn validate(&self, path: &std::path::Path) -> Result<(), ConfigError> {
         let bad = |field: &str, msg: String| Err(ConfigError::invalid(path, field, msg));
         if !(self.learning_rate > 0.0 && self.learning_rate <= 1.0) {
@@ -178,43 +157,29 @@ impl PpoConfig {
                 return bad(field, format!("must be a finite number above 0, got {v}"));
             }
         }
-        for (field, v) in [
+        let counts = [
             ("batch_size", self.batch_size as u64),
             ("epochs", self.epochs as u64),
             ("time_horizon", self.time_horizon as u64),
             ("hidden", self.hidden as u64),
             ("checkpoint_every", self.checkpoint_every),
             ("progress_every", self.progress_every),
-        ] {
-            if v == 0 {
-                return bad(field, "must be at least 1, got 0".into());
-            }
-        }
-        if self.buffer_size < self.batch_size {
-            return bad(
-                "buffer_size",
-                format!(
-                    "must be at least batch_size ({}), got {}",
-                    self.batch_size, self.buffer_size
-                ),
-            );
-        }
-        Ok(())
+        ];
+        check_counts(path, &counts, self.batch_size, self.buffer_size)
     }
+}
 
+impl PpoConfig {
     /// The thesis' budget of a behaviour of `species` in `phase` (its own agent decisions).
     pub fn budget(&self, species: &str, phase: Phase) -> u64 {
-        let k = match phase {
-            Phase::Pretrain => 0,
-            Phase::Transfer => 1,
-        };
-        self.budgets.get(species).map_or(2_000_000, |b| b[k])
+        budget_of(&self.budgets, species, phase)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use deepfoids_env::ConfigDirs;
 
     /// An edit of the defaults, and the error it must give.
     type Case = (fn(&mut PpoConfig), &'static str);

@@ -57,7 +57,7 @@ use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::logger::Scalars;
 use deepfoids_learn::onnx::Metadata;
-use deepfoids_learn::plan::{self, MemoryPlan, Part, UpdatePlan};
+use deepfoids_learn::plan::{self, MemoryPlan, Part, TrainConfigFile, UpdatePlan};
 use deepfoids_learn::policy::NoiseKey;
 use deepfoids_learn::tensor::{ForceInit, ParamIds, clip_grad_norm, tensor1, tensor2};
 use deepfoids_learn::{ACTIONS, Algorithm, BodyConfig, Grids, LearnError, Result};

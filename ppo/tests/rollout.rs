@@ -6,6 +6,7 @@ use burn::prelude::Device;
 use deepfoids_env::{ConfigDirs, Env, Phase, Scene};
 use deepfoids_learn::Backend;
 use deepfoids_learn::driver::{Learner, LearnerCtx, StepCtx, Timing, Trainer};
+use deepfoids_learn::plan::TrainConfigFile;
 use deepfoids_ppo::train::PpoLearner;
 use deepfoids_ppo::{Ppo, PpoConfig, Rollout};
 

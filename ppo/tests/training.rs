@@ -4,6 +4,7 @@
 
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, Scene};
 use deepfoids_learn::checkpoint::{RunState, checkpoints};
+use deepfoids_learn::plan::TrainConfigFile;
 use deepfoids_learn::policy::ActorPolicy;
 use deepfoids_learn::{Backend, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_ppo::{Ppo, PpoConfig, Rollout, load_actor, train};

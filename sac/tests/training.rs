@@ -3,6 +3,7 @@
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
 use deepfoids_learn::checkpoint::{RunState, checkpoints};
+use deepfoids_learn::plan::TrainConfigFile;
 use deepfoids_learn::{Backend, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_sac::replay::{PROXIMITY_TOLERANCE, Replay, next_history};
 use deepfoids_sac::{Sac, SacConfig, train};
