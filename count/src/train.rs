@@ -550,37 +550,15 @@ pub fn train(
     let mut optim = AdamConfig::new().init();
     let mut rng = Rng(cfg.seed ^ 0xC0FF_EE00);
     let start = Instant::now();
-    let (c, b) = (cfg.crop as usize, cfg.batch.max(1));
-    let g = c / cfg.stride;
     let (mut last, mut first) = (0.0, 0.0);
     let mut steps = 0;
     for step in 0..cfg.steps {
         if cfg.minutes > 0.0 && start.elapsed().as_secs_f64() > cfg.minutes * 60.0 {
             break;
         }
-        let (mut x, mut ht, mut bt, mut mk, mut wt) = (vec![], vec![], vec![], vec![], vec![]);
-        for _ in 0..b {
-            let s = &data.train[rng.below(data.train.len() as u64) as usize];
-            let (img, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, &mut rng);
-            x.extend(to_chw(&img));
-            let t = targets(&boxes, &ignore, cfg.crop, cfg.stride);
-            ht.extend(t.heat);
-            bt.extend(t.reg);
-            mk.extend(t.mask);
-            wt.extend(t.weight);
-        }
-        let t = |v: Vec<f32>, ch: usize, side: usize| {
-            Tensor::<4>::from_data(TensorData::new(v, [b, ch, side, side]), &dev)
-        };
-        let (heat, boxes) = model.forward(t(x, 3, c));
-        let (total, focal, l1) = loss(
-            heat,
-            boxes,
-            t(ht, 1, g),
-            t(bt, 4, g),
-            t(mk, 4, g),
-            t(wt, 1, g),
-        );
+        let [x, ht, bt, mk, wt] = sample_batch(data, cfg, &mut rng, &dev);
+        let (heat, boxes) = model.forward(x);
+        let (total, focal, l1) = loss(heat, boxes, ht, bt, mk, wt);
         let value = total.clone().into_scalar::<f32>() as f64;
         if !value.is_finite() {
             return Err(CountError::Train(format!(
@@ -683,6 +661,36 @@ pub fn train(
         &serde_json::json!({"report": report, "config": cfg}),
     )?;
     Ok(report)
+}
+
+/// One minibatch of `cfg.batch` random crops of the training frames: the
+/// images `[b, 3, crop, crop]` and their targets at the stride's grid
+/// (heat `[b, 1, g, g]`, box regression and its mask `[b, 4, g, g]`, weight
+/// `[b, 1, g, g]`), as [`targets`] makes them.
+fn sample_batch(data: &Data, cfg: &TrainConfig, rng: &mut Rng, dev: &Device) -> [Tensor<4>; 5] {
+    let (c, b) = (cfg.crop as usize, cfg.batch.max(1));
+    let g = c / cfg.stride;
+    let (mut x, mut ht, mut bt, mut mk, mut wt) = (vec![], vec![], vec![], vec![], vec![]);
+    for _ in 0..b {
+        let s = &data.train[rng.below(data.train.len() as u64) as usize];
+        let (img, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, rng);
+        x.extend(to_chw(&img));
+        let t = targets(&boxes, &ignore, cfg.crop, cfg.stride);
+        ht.extend(t.heat);
+        bt.extend(t.reg);
+        mk.extend(t.mask);
+        wt.extend(t.weight);
+    }
+    let t = |v: Vec<f32>, ch: usize, side: usize| {
+        Tensor::<4>::from_data(TensorData::new(v, [b, ch, side, side]), dev)
+    };
+    [
+        t(x, 3, c),
+        t(ht, 1, g),
+        t(bt, 4, g),
+        t(mk, 4, g),
+        t(wt, 1, g),
+    ]
 }
 
 /// `value` as pretty JSON at `path`, atomically.

@@ -674,70 +674,12 @@ impl Env {
                 });
         }
         if mode != Mode::Refresh {
-            for (b, info) in self.model.info.iter().enumerate() {
-                if !self.scratch.deciding[b] {
-                    continue;
-                }
-                let batch = &mut self.output.behaviours[b];
-                for (a, i) in info.range().enumerate() {
-                    let d = &self.scratch.outcome[i];
-                    let since = &mut self.state.since[i];
-                    let restart = mode == Mode::Reset || d.terminated || d.truncated;
-                    since.episode_len = if restart { 0 } else { since.episode_len + 1 };
-                    batch.terms[a] = d.terms.to_array();
-                    batch.rewards[a] = d.terms.total();
-                    batch.terminated[a] = d.terminated;
-                    batch.truncated[a] = d.truncated;
-                    batch.crossed[a] = d.crossed;
-                    batch.new_collisions[a] = d.new_collisions;
-                }
-            }
+            self.publish_outcomes(mode);
         }
         let t1 = std::time::Instant::now();
         self.times.sensing += t1 - t0;
         if mode == Mode::Decision {
-            let s = &mut self.state;
-            chase::update(
-                &mut s.world,
-                &s.since,
-                &self.scratch.outcome,
-                &self.model.info,
-                &self.scratch.deciding,
-                &self.model.scene.physics,
-                self.model.seed,
-                s.tick,
-                &mut self.scratch.changed,
-            );
-            // Fish whose chase partner changed see and know it at once: redo their newest frame.
-            if !self.scratch.changed.is_empty() {
-                gather_neighbours(
-                    &self.state.world,
-                    &self.scratch.sense_grid,
-                    &mut self.scratch.neighbours,
-                );
-            }
-            let sensing = m.sensing(
-                &self.state.world,
-                &self.scratch.sense_grid,
-                &self.scratch.neighbours,
-            );
-            for &i in &self.scratch.changed {
-                let i = i as usize;
-                let b = self.state.world.behaviour[i] as usize;
-                let a = i - self.model.info[b].first;
-                let batch = &mut self.output.behaviours[b];
-                let mut frame = Frame::new(1.0);
-                let seen = sensing.sense(i, &mut frame);
-                frame.write(
-                    &mut batch.grids
-                        [a * STACKED_LEN + (STACK - 1) * FRAME_LEN..(a + 1) * STACKED_LEN],
-                );
-                sensing.vector_obs(
-                    i,
-                    &seen,
-                    &mut batch.vectors[a * VECTOR_OBS..(a + 1) * VECTOR_OBS],
-                );
-            }
+            self.update_chases();
         }
         self.times.chases += t1.elapsed();
         let (w, fish) = (&self.state.world, &mut self.output.fish);
@@ -746,6 +688,75 @@ impl Env {
         fish.speed.copy_from_slice(&w.speed);
         self.output.tick = self.state.tick;
         self.output.time = w.time;
+    }
+
+    /// The deciding behaviours' rewards, reward terms and episode ends, from
+    /// pass A's outcomes, into their batches; episode lengths move on.
+    fn publish_outcomes(&mut self, mode: Mode) {
+        for (b, info) in self.model.info.iter().enumerate() {
+            if !self.scratch.deciding[b] {
+                continue;
+            }
+            let batch = &mut self.output.behaviours[b];
+            for (a, i) in info.range().enumerate() {
+                let d = &self.scratch.outcome[i];
+                let since = &mut self.state.since[i];
+                let restart = mode == Mode::Reset || d.terminated || d.truncated;
+                since.episode_len = if restart { 0 } else { since.episode_len + 1 };
+                batch.terms[a] = d.terms.to_array();
+                batch.rewards[a] = d.terms.total();
+                batch.terminated[a] = d.terminated;
+                batch.truncated[a] = d.truncated;
+                batch.crossed[a] = d.crossed;
+                batch.new_collisions[a] = d.new_collisions;
+            }
+        }
+    }
+
+    /// Chases end and start (SPEC §6, dominance); the fish whose partner changed see it
+    /// at once: their newest frame and vector observation are redone.
+    fn update_chases(&mut self) {
+        let s = &mut self.state;
+        chase::update(
+            &mut s.world,
+            &s.since,
+            &self.scratch.outcome,
+            &self.model.info,
+            &self.scratch.deciding,
+            &self.model.scene.physics,
+            self.model.seed,
+            s.tick,
+            &mut self.scratch.changed,
+        );
+        // Fish whose chase partner changed see and know it at once: redo their newest frame.
+        if !self.scratch.changed.is_empty() {
+            gather_neighbours(
+                &self.state.world,
+                &self.scratch.sense_grid,
+                &mut self.scratch.neighbours,
+            );
+        }
+        let sensing = self.model.sensing(
+            &self.state.world,
+            &self.scratch.sense_grid,
+            &self.scratch.neighbours,
+        );
+        for &i in &self.scratch.changed {
+            let i = i as usize;
+            let b = self.state.world.behaviour[i] as usize;
+            let a = i - self.model.info[b].first;
+            let batch = &mut self.output.behaviours[b];
+            let mut frame = Frame::new(1.0);
+            let seen = sensing.sense(i, &mut frame);
+            frame.write(
+                &mut batch.grids[a * STACKED_LEN + (STACK - 1) * FRAME_LEN..(a + 1) * STACKED_LEN],
+            );
+            sensing.vector_obs(
+                i,
+                &seen,
+                &mut batch.vectors[a * VECTOR_OBS..(a + 1) * VECTOR_OBS],
+            );
+        }
     }
 }
 

@@ -1,5 +1,5 @@
 //! What the `deepfoids` commands do, as a library that a Python or Ray driver
-//! can call without the command line: load scenes and policies
+//! can call without the command line: the benchmarks ([`bench`]), load scenes and policies
 //! ([`policies`]), evaluate a school ([`evaluate`]), train a scene
 //! ([`training`]), runs side by side ([`compare`]), the two-step scheme
 //! ([`pipeline`]), labelled datasets for detectors ([`dataset`]), replay pages ([`replays`]) and the reproduction of thesis §4.5 ([`reproduce`]: stages,
@@ -9,6 +9,7 @@
 //! `-learn`, `-ppo`, `-sac`, `-onnx`, `-io`) give typed errors that name the
 //! file or value; this crate adds which run, stage or claim it was.
 
+pub mod bench;
 pub mod bounds;
 pub mod compare;
 pub mod dataset;

@@ -44,10 +44,7 @@ pub struct Trained {
 
 /// The training config of `opts.algo`, with `opts.budgets` in place of its own.
 fn load_config(dirs: &ConfigDirs, opts: &TrainOptions) -> Result<Config> {
-    let mut config = match opts.algo {
-        Algorithm::Ppo => Config::Ppo(Ppo::load(dirs)?),
-        Algorithm::Sac => Config::Sac(Sac::load(dirs)?),
-    };
+    let mut config = Config::load(dirs, opts.algo)?;
     for (species, b) in &opts.budgets {
         match &mut config {
             Config::Ppo(t) => t.config.budgets.insert(species.clone(), *b),
@@ -58,9 +55,36 @@ fn load_config(dirs: &ConfigDirs, opts: &TrainOptions) -> Result<Config> {
 }
 
 /// Either algorithm with its training config.
-enum Config {
+pub(crate) enum Config {
     Ppo(Ppo),
     Sac(Sac),
+}
+
+impl Config {
+    /// `<configs>/train/<algo>.toml`, read and checked.
+    pub(crate) fn load(dirs: &ConfigDirs, algo: Algorithm) -> Result<Self> {
+        Ok(match algo {
+            Algorithm::Ppo => Config::Ppo(Ppo::load(dirs)?),
+            Algorithm::Sac => Config::Sac(Sac::load(dirs)?),
+        })
+    }
+
+    /// When the updates of a behaviour of `agents` come.
+    pub(crate) fn update_plan(&self, agents: usize) -> deepfoids_learn::plan::UpdatePlan {
+        use deepfoids_learn::driver::Trainer;
+        match self {
+            Config::Ppo(t) => t.update_plan(agents),
+            Config::Sac(t) => t.update_plan(agents),
+        }
+    }
+
+    /// Train `run` with this algorithm.
+    pub(crate) fn train(&self, run: RunArgs) -> deepfoids_learn::Result<TrainOutcome> {
+        match self {
+            Config::Ppo(t) => deepfoids_ppo::train(t, run),
+            Config::Sac(t) => deepfoids_sac::train(t, run),
+        }
+    }
 }
 
 /// Everything a run needs before its folder is made (issue 25): the
@@ -192,10 +216,7 @@ pub fn train_scene(
         save: true,
         config_toml,
     };
-    let outcome = match config {
-        Config::Ppo(t) => deepfoids_ppo::train(&t, args)?,
-        Config::Sac(t) => deepfoids_sac::train(&t, args)?,
-    };
+    let outcome = config.train(args)?;
     print_training(&outcome);
     let summary = if opts.eval_seconds > 0.0 {
         Some(evaluate_run(scene, run_dir, opts)?)

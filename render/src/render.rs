@@ -711,31 +711,18 @@ impl Renderer {
             && cam_pts.iter().any(|c| c.z >= NEAR);
         // Triangles crossing a pinhole's near plane are clipped in camera
         // space first; their new vertices widen the screen box.
-        let mut clipped: Vec<[RVert; 3]> = Vec::new();
-        let mut clipped_cull: Vec<bool> = Vec::new();
-        if pinhole_clip {
-            for (t, tri) in mesh.triangles.iter().enumerate() {
-                let [a, b, c] = tri.map(|k| k as usize);
-                if [a, b, c].iter().all(|&k| cam_pts[k].z >= NEAR) {
-                    continue;
-                }
-                let poly = clip_near([a, b, c].map(|k| (cam_pts[k], shades[k])));
-                let pv: Vec<RVert> = poly
-                    .iter()
-                    .filter_map(|(c, s)| cam.project_camera(*c).map(|p| RVert { p, shade: *s }))
-                    .collect();
-                for v in &pv {
-                    bx0 = bx0.min(v.p.x);
-                    by0 = by0.min(v.p.y);
-                    bx1 = bx1.max(v.p.x);
-                    by1 = by1.max(v.p.y);
-                }
-                for k in 1..pv.len().saturating_sub(1) {
-                    clipped.push([pv[0], pv[k], pv[k + 1]]);
-                    clipped_cull.push(t < mesh.first_fin);
-                }
+        let (clipped, clipped_cull) = if pinhole_clip {
+            let (clipped, cull) = clip_near_triangles(mesh, cam, &cam_pts, &shades);
+            for v in clipped.iter().flatten() {
+                bx0 = bx0.min(v.p.x);
+                by0 = by0.min(v.p.y);
+                bx1 = bx1.max(v.p.x);
+                by1 = by1.max(v.p.y);
             }
-        }
+            (clipped, cull)
+        } else {
+            (Vec::new(), Vec::new())
+        };
         if bx0 > bx1 {
             return None;
         }
@@ -794,14 +781,14 @@ impl Renderer {
             raster_tri(&mut local, &sampler, t as u16, cull, circle);
         }
         // 3D box from the bent mesh's local bounds.
-        let mut k = 0;
-        for z in [lo.z, hi.z] {
-            for y in [lo.y, hi.y] {
-                for x in [lo.x, hi.x] {
-                    local.box3d[k] = f.position + axes * (Vec3::new(x, y, z) * f.bl);
-                    k += 1;
-                }
-            }
+        for (k, corner) in local.box3d.iter_mut().enumerate() {
+            let pick = |bit: usize, lo: f32, hi: f32| if k >> bit & 1 == 0 { lo } else { hi };
+            let v = Vec3::new(
+                pick(0, lo.x, hi.x),
+                pick(1, lo.y, hi.y),
+                pick(2, lo.z, hi.z),
+            );
+            *corner = f.position + axes * (v * f.bl);
         }
         Some(local)
     }
@@ -1157,6 +1144,35 @@ impl RowSpan {
         let last = ((hi - 0.5).floor() as i64 + 1).min(x1);
         (first, last)
     }
+}
+
+/// The triangles of `mesh` that cross a pinhole camera's near plane, clipped
+/// in camera space (`cam_pts`, with the vertices' `shades`) and projected:
+/// fans of the clipped polygons, each with whether it is back-face culled
+/// (a body triangle, not a fin).
+fn clip_near_triangles(
+    mesh: &FishMesh,
+    cam: &Camera,
+    cam_pts: &[Vec3],
+    shades: &[Vec3],
+) -> (Vec<[RVert; 3]>, Vec<bool>) {
+    let (mut clipped, mut cull) = (Vec::new(), Vec::new());
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let [a, b, c] = tri.map(|k| k as usize);
+        if [a, b, c].iter().all(|&k| cam_pts[k].z >= NEAR) {
+            continue;
+        }
+        let poly = clip_near([a, b, c].map(|k| (cam_pts[k], shades[k])));
+        let pv: Vec<RVert> = poly
+            .iter()
+            .filter_map(|(c, s)| cam.project_camera(*c).map(|p| RVert { p, shade: *s }))
+            .collect();
+        for k in 1..pv.len().saturating_sub(1) {
+            clipped.push([pv[0], pv[k], pv[k + 1]]);
+            cull.push(t < mesh.first_fin);
+        }
+    }
+    (clipped, cull)
 }
 
 /// Rasterise triangle `t` into a fish's own buffer: its depth and, per
