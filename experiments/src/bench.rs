@@ -20,7 +20,7 @@ use std::time::Instant;
 pub fn env(dirs: &ConfigDirs, scene: &str, seconds: f64, warmup: f64, seed: u64) -> Result<()> {
     let scene = load_scene(dirs, scene, Phase::Pretrain)?;
     let mut env = Env::new(scene, seed);
-    let mut policy = RandomPolicy { seed: seed };
+    let mut policy = RandomPolicy { seed };
     let mut actions = action_buffers(&env);
     let warm = (warmup / env.tick_seconds()).round() as u64;
     let ticks = (seconds / env.tick_seconds()).round().max(1.0) as u64;
