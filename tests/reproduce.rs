@@ -118,6 +118,21 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         assert!(card.contains(&format!("`pretrained:{sp}`")), "{card}");
         assert!(card.contains("boundary collisions per fish-hour"), "{card}");
     }
+    // Coho in the density cages, inside coho's folder; shipping again
+    // (nothing trained or measured) keeps them when it replaces coho's.
+    let o = deepfoids(&again, None);
+    assert!(o.status.success(), "{}", text(&o));
+    for scene in ["density_sparse", "density_dense"] {
+        let dir = ship.join("coho").join(scene);
+        assert!(dir.join("final/coho_regular.onnx").is_file(), "{scene}");
+        let card = std::fs::read_to_string(ship.join("coho").join(format!("{scene}.md"))).unwrap();
+        assert!(
+            card.contains(&format!("`pretrained:coho/{scene}`")),
+            "{card}"
+        );
+        assert!(card.contains("pretraining in `coho_default`"), "{card}");
+        assert!(card.contains("--only density"), "{card}");
+    }
 
     // The shipped policy by name, in eval, and as --init-from.
     let ev = out.join("eval");
@@ -218,7 +233,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
     let t = text(&o);
     assert!(
         t.contains("no shipped policy `tuna`")
-            && t.contains("pretrained:coho, pretrained:seabream, pretrained:yellowtail"),
+            && t.contains("pretrained:coho, pretrained:coho/density_dense, pretrained:coho/density_sparse, pretrained:seabream, pretrained:yellowtail"),
         "{t}"
     );
     let _ = std::fs::remove_dir_all(&out);

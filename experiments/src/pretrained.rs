@@ -1,7 +1,10 @@
-//! The trained policies that ship with the repository (`policies/<species>/`,
-//! each a run folder holding `final/` — Burn weights, ONNX, `state.json` — its
-//! training log and configuration, with a model card `policies/<species>.md`),
-//! named on the command line as `pretrained:<species>`.
+//! The trained policies that ship with the repository, named on the command
+//! line as `pretrained:<species>` (the species' default scene,
+//! `policies/<species>/`) or `pretrained:<species>/<scene>` (transferred into
+//! another scene, `policies/<species>/<scene>/`). Each is a run folder
+//! holding `final/` — Burn weights, ONNX, `state.json` — its training log and
+//! configuration, with a model card beside it (`policies/<species>.md`,
+//! `policies/<species>/<scene>.md`).
 
 use std::path::{Path, PathBuf};
 
@@ -36,35 +39,56 @@ fn shipped(var: &str, folder: &str) -> PathBuf {
         .join(folder)
 }
 
-/// Species with a shipped policy in `root`.
-pub fn available(root: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(root)
+/// Whether `dir` holds a finished policy (`final/state.json`).
+fn is_policy(dir: &Path) -> bool {
+    dir.join("final").join("state.json").is_file()
+}
+
+/// The subfolders of `dir` that hold a policy, by name, sorted.
+fn policy_folders(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
-        .filter(|e| e.path().join("final").join("state.json").is_file())
+        .filter(|e| is_policy(&e.path()))
         .filter_map(|e| e.file_name().to_str().map(str::to_string))
+        .filter(|n| !n.starts_with('.'))
         .collect();
     v.sort();
     v
 }
 
-/// `pretrained:<species>` → its folder; anything else is a path, unchanged.
+/// The shipped policies in `root` by name: each species (`coho`), then its
+/// other scenes (`coho/density_dense`).
+pub fn available(root: &Path) -> Vec<String> {
+    let mut v = vec![];
+    for species in policy_folders(root) {
+        let nested = policy_folders(&root.join(&species));
+        v.push(species.clone());
+        v.extend(nested.into_iter().map(|scene| format!("{species}/{scene}")));
+    }
+    v
+}
+
+/// `pretrained:<species>` or `pretrained:<species>/<scene>` → its folder;
+/// anything else is a path, unchanged.
 pub fn resolve(s: &str) -> Result<PathBuf, String> {
-    let Some(species) = s.strip_prefix(PREFIX) else {
+    let Some(name) = s.strip_prefix(PREFIX) else {
         return Ok(PathBuf::from(s));
     };
     let root = root();
-    let dir = root.join(species);
-    if !species.is_empty()
-        && !species.contains(['/', '\\', '.'])
-        && dir.join("final").join("state.json").is_file()
-    {
+    let parts: Vec<&str> = name.split('/').collect();
+    let well_formed = parts.len() <= 2
+        && parts
+            .iter()
+            .all(|p| !p.is_empty() && !p.contains(['\\', '.']));
+    let dir = parts.iter().fold(root.clone(), |d, p| d.join(p));
+    if well_formed && is_policy(&dir) {
         return Ok(dir);
     }
     let have = available(&root);
     Err(format!(
-        "no shipped policy `{species}` in {}; available: {}",
+        "no shipped policy `{name}` in {}; available: {}",
         root.display(),
         if have.is_empty() {
             "none".to_string()

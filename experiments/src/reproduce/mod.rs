@@ -324,10 +324,14 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
     profile.warmup *= args.eval_scale;
     profile.seconds *= args.eval_scale;
     let chosen = claims::select(&args.only)?;
-    // Shipping needs every species' transferred default policy.
+    // Shipping needs every shipped policy's stages.
     let mut needs = chosen.clone();
-    if args.ship.is_some() && !needs.iter().any(|c| c.id == "circle") {
-        needs.extend(claims::select(&["circle".to_string()])?);
+    if args.ship.is_some() {
+        for id in ship::SHIPPED_CLAIMS {
+            if !needs.iter().any(|c| c.id == id) {
+                needs.extend(claims::select(&[id.to_string()])?);
+            }
+        }
     }
     let stages = stages_for(&needs);
     match &args.mode {

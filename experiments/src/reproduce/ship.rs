@@ -1,8 +1,11 @@
 //! `reproduce --ship DIR`: copy each species' transferred default policy into
-//! `DIR/<species>/` (a run folder: `final/` with Burn weights, ONNX and
-//! `state.json`; its `config.toml` and `scalars.csv`) with a model card —
-//! `DIR/<species>.md` for people, `DIR/<species>/card.toml` for the test that
-//! re-evaluates the policy and checks the card's figures.
+//! `DIR/<species>/`, and coho's transfers into the density cages into
+//! `DIR/coho/<scene>/` (each a run folder: `final/` with Burn weights, ONNX
+//! and `state.json`; its `config.toml` and `scalars.csv`) with a model card —
+//! `DIR/<species>.md` or `DIR/coho/<scene>.md` for people, `card.toml` in the
+//! run folder for the test that re-evaluates the policy and checks the card's
+//! figures. Named `pretrained:<species>` and `pretrained:coho/<scene>`
+//! ([`crate::pretrained`]).
 
 use super::measure::{Stat, measure_one};
 use super::{Profile, Stage};
@@ -15,6 +18,29 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 pub const SPECIES: [&str; 3] = ["coho", "yellowtail", "seabream"];
+
+/// Every shipped policy: (species, scene it was transferred into). The
+/// default scenes first; then coho in the density cages (issue 21).
+pub const SHIPPED: [(&str, &str); 5] = [
+    ("coho", "coho_default"),
+    ("yellowtail", "yellowtail_default"),
+    ("seabream", "seabream_default"),
+    ("coho", "density_sparse"),
+    ("coho", "density_dense"),
+];
+
+/// The claims whose stages train every [`SHIPPED`] policy.
+pub const SHIPPED_CLAIMS: [&str; 2] = ["circle", "density"];
+
+/// The name of the shipped policy of `species` transferred into `scene`:
+/// `coho` for its default scene, `coho/density_dense` otherwise.
+pub fn shipped_name(species: &str, scene: &str) -> String {
+    if scene == format!("{species}_default") {
+        species.to_string()
+    } else {
+        format!("{species}/{scene}")
+    }
+}
 
 /// One figure of a card: mean and standard deviation over the evaluation
 /// seeds, and how far a re-evaluation may stray: `3·sd + floor`.
@@ -123,19 +149,25 @@ impl Card {
     pub fn deterministic(&self) -> bool {
         self.evaluation == "deterministic"
     }
+
+    /// Its name after `pretrained:` ([`shipped_name`]).
+    pub fn name(&self) -> String {
+        shipped_name(&self.species, &self.scene)
+    }
 }
 
-/// Measure (cached) and ship every species' default policy.
+/// Measure (cached) and ship every [`SHIPPED`] policy.
 pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Result<()> {
     let ts = profile.seeds[0];
     std::fs::create_dir_all(dest).with_context(|| format!("cannot create {}", dest.display()))?;
-    for sp in SPECIES {
-        let scene = format!("{sp}_default");
+    for (sp, scene) in SHIPPED {
+        let scene = scene.to_string();
+        let name = shipped_name(sp, &scene);
         let stage = Stage::find(&format!("transfer-{scene}"));
         let run = out.join(format!("s{ts}")).join(&stage.name);
         if !run.join("final").join("state.json").is_file() {
             bail!(
-                "cannot ship {sp}: {} has no final policy (run the `circle` claim first)",
+                "cannot ship {name}: {} has no final policy (run the `circle` and `density` claims first)",
                 run.display()
             );
         }
@@ -236,34 +268,59 @@ pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Re
             final_train_reward,
             figures,
         };
-        // Into a fresh folder beside the destination, then swapped in.
-        let tmp = dest.join(format!(".{sp}.tmp"));
-        let _ = std::fs::remove_dir_all(&tmp);
-        std::fs::create_dir_all(tmp.join("final"))?;
-        for e in std::fs::read_dir(run.join("final"))? {
-            let e = e?;
-            std::fs::copy(e.path(), tmp.join("final").join(e.file_name()))?;
+        install(&run, &card, dest)?;
+        eprintln!("shipped {name} to {}", dest.join(&name).display());
+    }
+    Ok(())
+}
+
+/// Copy the run folder `run` with `card` to `dest/<name>/` and its card to
+/// `dest/<name>.md`. The folder is made beside its place and swapped in; the
+/// policies shipped inside a species' folder (`coho/density_dense`) move
+/// into its replacement.
+fn install(run: &Path, card: &Card, dest: &Path) -> Result<()> {
+    let name = card.name();
+    let target = dest.join(&name);
+    let parent = target.parent().unwrap_or(dest).to_path_buf();
+    let leaf = target
+        .file_name()
+        .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+    std::fs::create_dir_all(&parent)
+        .with_context(|| format!("cannot create {}", parent.display()))?;
+    let tmp = parent.join(format!(".{leaf}.tmp"));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(tmp.join("final"))?;
+    for e in std::fs::read_dir(run.join("final"))? {
+        let e = e?;
+        std::fs::copy(e.path(), tmp.join("final").join(e.file_name()))?;
+    }
+    for f in ["config.toml", "scalars.csv"] {
+        if run.join(f).is_file() {
+            std::fs::copy(run.join(f), tmp.join(f))?;
         }
-        for f in ["config.toml", "scalars.csv"] {
-            if run.join(f).is_file() {
-                std::fs::copy(run.join(f), tmp.join(f))?;
+    }
+    std::fs::write(tmp.join("card.toml"), toml::to_string_pretty(card)?)?;
+    if target.is_dir() {
+        for e in std::fs::read_dir(&target)? {
+            let e = e?;
+            let keep = e.path().join("final").join("state.json").is_file()
+                || e.path().extension().is_some_and(|x| x == "md");
+            if keep && e.file_name() != "final" {
+                std::fs::rename(e.path(), tmp.join(e.file_name()))?;
             }
         }
-        std::fs::write(tmp.join("card.toml"), toml::to_string_pretty(&card)?)?;
-        let target = dest.join(sp);
-        let old = dest.join(format!(".{sp}.old"));
-        let _ = std::fs::remove_dir_all(&old);
-        if target.exists() {
-            std::fs::rename(&target, &old)?;
-        }
-        std::fs::rename(&tmp, &target)?;
-        let _ = std::fs::remove_dir_all(&old);
-        deepfoids_io::write_atomic(
-            dest.join(format!("{sp}.md")),
-            card_markdown(&card).as_bytes(),
-        )?;
-        eprintln!("shipped {sp} to {}", target.display());
     }
+    let old = parent.join(format!(".{leaf}.old"));
+    let _ = std::fs::remove_dir_all(&old);
+    if target.exists() {
+        std::fs::rename(&target, &old)?;
+    }
+    std::fs::rename(&tmp, &target)?;
+    let _ = std::fs::remove_dir_all(&old);
+    deepfoids_io::write_atomic(
+        dest.join(format!("{name}.md")),
+        card_markdown(card).as_bytes(),
+    )?;
     Ok(())
 }
 
@@ -279,20 +336,24 @@ fn card_markdown(c: &Card) -> String {
             .map_or("–".into(), |x| format!("{:.0} %", 100.0 * x.mean))
     };
     let mut md = String::new();
-    let _ = writeln!(
-        md,
-        "# Model card: {} (`pretrained:{}`)\n",
-        c.species, c.species
-    );
+    let name = c.name();
+    let _ = writeln!(md, "# Model card: {name} (`pretrained:{name}`)\n");
     let _ = writeln!(
         md,
         "PPO policy for every {} in a scene (one behaviour per species and size class takes it), trained with the thesis' two-step scheme: pretraining in `{}` for {} agent decisions per behaviour with the pretraining reward weights, then transfer learning in `{}` for {} with the transfer weights (thesis §4.5.2, Table 4.4). Training seed {}; commit `{}`; `deepfoids reproduce --profile {}`.\n",
-        c.species, c.scene, c.budget[0], c.scene, c.budget[1], c.train_seed, c.commit, c.profile
+        c.species,
+        format_args!("{}_default", c.species),
+        c.budget[0],
+        c.scene,
+        c.budget[1],
+        c.train_seed,
+        c.commit,
+        c.profile
     );
     let _ = writeln!(
         md,
         "Files: `{0}/final/` (Burn weights `*.model.bpk`, ONNX `*.onnx` with ML-Agents' interface, `state.json`), `{0}/config.toml` (everything the transfer stage was trained with), `{0}/scalars.csv` (its learning curves), `{0}/card.toml` (these figures, read by the test).\n",
-        c.species
+        name
     );
     let _ = writeln!(
         md,
@@ -346,10 +407,19 @@ fn card_markdown(c: &Card) -> String {
         "`tests/policies.rs` re-evaluates the policy with evaluation seed {} and fails when a figure strays more than 3 × its standard deviation plus a floor from the table (floors: 0.1 for P, M and NN, 0.2 BL/s, 0.15 for state shares, 10 + 20 % boundary and 100 + 20 % neighbour collisions per fish-hour, 1 + 10 % reward), so a change to the environment that breaks the policy is caught.\n",
         c.eval_seeds.first().copied().unwrap_or(0)
     );
+    let rp = format!(" --reward-profile {}", c.reward_profile);
+    let claim = if c.scene == format!("{}_default", c.species) {
+        "circle"
+    } else {
+        "density"
+    };
     let _ = writeln!(
         md,
-        "## Use\n\n```sh\ndeepfoids eval --scene {0} --phase transfer --policy pretrained:{1} --warmup 10\ndeepfoids render --scene {0} --policy pretrained:{1} --out runs/dataset-{1}\ndeepfoids train --scene <scene> --phase transfer --init-from pretrained:{1}   # transfer into another cage\n```\n\n## Retrain\n\n```sh\ndeepfoids reproduce --profile {2} --only circle --out runs/repro --ship policies\n```\n\nor by hand: `deepfoids train --scene {0} --phase pretrain --run-id pre` then `deepfoids train --scene {0} --phase transfer --init-from runs/pre`.",
-        c.scene, c.species, c.profile
+        "## Use\n\n```sh\ndeepfoids eval --scene {scene} --phase transfer --policy pretrained:{name} --warmup 10{rp}\ndeepfoids render --scene {scene} --policy pretrained:{name} --out runs/dataset-{dash}{rp}\ndeepfoids train --scene <scene> --phase transfer --init-from pretrained:{name}{rp}   # transfer into another cage\n```\n\n## Retrain\n\n```sh\ndeepfoids reproduce --profile {profile} --only {claim} --out runs/repro --ship policies{rp}\n```\n\nor by hand: `deepfoids train --scene {sp}_default --phase pretrain --run-id pre{rp}` then `deepfoids train --scene {scene} --phase transfer --init-from runs/pre{rp}`.",
+        scene = c.scene,
+        dash = name.replace('/', "-"),
+        profile = c.profile,
+        sp = c.species,
     );
     md
 }
