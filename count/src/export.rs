@@ -14,7 +14,7 @@
 use crate::model::{DetectorNet, NORM_EPS, NORM_KERNEL, SLOPE};
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
-use deepfoids_learn::onnx::build::{float, int, ints, node, tensor, value_info};
+use deepfoids_learn::onnx::build::{float, int, ints, model, node, tensor, value_info};
 use deepfoids_learn::onnx::proto::*;
 
 pub const OPSET: i64 = 13;
@@ -167,16 +167,8 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
     props.extend(metadata.iter().cloned());
     let (h, w) = (Err("height"), Err("width"));
     let (gh, gw) = (Err("grid_height"), Err("grid_width"));
-    ModelProto {
-        ir_version: IR_VERSION,
-        producer_name: "deepfoids".into(),
-        producer_version: env!("CARGO_PKG_VERSION").into(),
-        domain: String::new(),
-        model_version: 1,
-        doc_string: format!(
-            "DeepFoids one-class fish detector (CenterNet-style heatmap and boxes, stride {stride})"
-        ),
-        graph: Some(GraphProto {
+    model(
+        GraphProto {
             node: g.nodes,
             name: "deepfoids_fish_detector".into(),
             initializer: g.init,
@@ -186,15 +178,13 @@ pub fn export_detector(net: &DetectorNet, metadata: &[(String, String)]) -> Vec<
                 value_info("heatmap", &[Ok(1), Ok(1), gh, gw]),
                 value_info("boxes", &[Ok(1), Ok(4), gh, gw]),
             ],
-        }),
-        opset_import: vec![OperatorSetIdProto {
-            domain: String::new(),
-            version: OPSET,
-        }],
-        metadata_props: props
-            .into_iter()
-            .map(|(key, value)| StringStringEntryProto { key, value })
-            .collect(),
-    }
+        },
+        IR_VERSION,
+        OPSET,
+        format!(
+            "DeepFoids one-class fish detector (CenterNet-style heatmap and boxes, stride {stride})"
+        ),
+        props,
+    )
     .to_bytes()
 }

@@ -89,3 +89,31 @@ pub fn value_info(name: &str, dims: &[Result<i64, &str>]) -> ValueInfoProto {
         doc_string: String::new(),
     }
 }
+
+/// A model of `graph` made by deepfoids at ONNX IR `ir_version` and default
+/// opset `opset`, with `doc_string` and the metadata `props` (key, value).
+pub fn model(
+    graph: GraphProto,
+    ir_version: i64,
+    opset: i64,
+    doc_string: String,
+    props: Vec<(String, String)>,
+) -> ModelProto {
+    ModelProto {
+        ir_version,
+        producer_name: "deepfoids".into(),
+        producer_version: env!("CARGO_PKG_VERSION").into(),
+        domain: String::new(),
+        model_version: 1,
+        doc_string,
+        graph: Some(graph),
+        opset_import: vec![OperatorSetIdProto {
+            domain: String::new(),
+            version: opset,
+        }],
+        metadata_props: props
+            .into_iter()
+            .map(|(key, value)| StringStringEntryProto { key, value })
+            .collect(),
+    }
+}

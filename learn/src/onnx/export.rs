@@ -378,27 +378,14 @@ fn model(graph: GraphProto, meta: &Metadata) -> ModelProto {
         ("observation_layout", OBSERVATION_LAYOUT.to_string()),
         ("action_layout", ACTION_LAYOUT.to_string()),
     ];
-    ModelProto {
-        ir_version: IR_VERSION,
-        producer_name: "deepfoids".into(),
-        producer_version: env!("CARGO_PKG_VERSION").into(),
-        domain: String::new(),
-        model_version: 1,
-        doc_string: format!(
+    super::build::model(
+        graph,
+        IR_VERSION,
+        OPSET,
+        format!(
             "{} policy for {} ({}), step {}",
             meta.algorithm, meta.behaviour, meta.scene, meta.training_step
         ),
-        graph: Some(graph),
-        opset_import: vec![OperatorSetIdProto {
-            domain: String::new(),
-            version: OPSET,
-        }],
-        metadata_props: props
-            .into_iter()
-            .map(|(k, v)| StringStringEntryProto {
-                key: k.into(),
-                value: v,
-            })
-            .collect(),
-    }
+        props.into_iter().map(|(k, v)| (k.to_string(), v)).collect(),
+    )
 }
