@@ -218,6 +218,42 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
     );
     assert!(o.status.success(), "{}", text(&o));
     assert!(cmp.join("compare.md").is_file());
+    // A density-cage policy by name; a name that leaves the folder is refused.
+    let o = deepfoids(
+        &[
+            "eval",
+            "--scene",
+            "density_sparse",
+            "--phase",
+            "transfer",
+            "--policy",
+            "pretrained:coho/density_sparse",
+            "--seconds",
+            "1",
+            "--out",
+            out.join("eval-sparse").to_str().unwrap(),
+        ],
+        Some(&ship),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let summary = std::fs::read_to_string(out.join("eval-sparse/summary.json")).unwrap();
+    assert!(summary.contains("density_sparse"), "{summary}");
+    for bad in [
+        "pretrained:coho/../seabream",
+        "pretrained:coho/",
+        "pretrained:coho/x/y",
+    ] {
+        let o = deepfoids(
+            &["eval", "--scene", "density_sparse", "--policy", bad],
+            Some(&ship),
+        );
+        assert!(!o.status.success(), "{bad}");
+        assert!(
+            text(&o).contains("no shipped policy"),
+            "{bad}: {}",
+            text(&o)
+        );
+    }
     // An unknown species names what there is.
     let o = deepfoids(
         &[
