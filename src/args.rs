@@ -27,9 +27,14 @@ pub struct SceneArgs {
     pub phase: Phase,
 }
 
-/// How a trained policy is loaded and run.
+/// Who acts, and how a trained policy is loaded and run.
 #[derive(Args, Debug, Clone)]
 pub struct PolicyArgs {
+    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a shipped
+    /// policy (`pretrained:<species>`, `pretrained:<species>/<scene>`), a run folder
+    /// (`runs/<id>`) or an exported `.onnx` file [default: `foids`; `simulate`: `random`]
+    #[arg(long, value_name = "POLICY")]
+    pub policy: Option<String>,
     /// With a run folder: load this checkpoint step instead of the final policy
     #[arg(value_parser = whole::<u64>, long, value_name = "STEP")]
     pub checkpoint: Option<u64>,
@@ -47,19 +52,21 @@ pub struct PolicyArgs {
 }
 
 impl PolicyArgs {
-    /// `--latest` replaced by the step of `policy`'s newest checkpoint, so
-    /// that everything recorded names the exact checkpoint used.
-    pub fn resolve_latest(&mut self, policy: &str) -> anyhow::Result<()> {
-        if !self.latest {
-            return Ok(());
+    /// The policy that acts (`--policy`, else the command's `default`) and
+    /// these options with `--latest` replaced by the step of its newest
+    /// checkpoint, so that everything recorded names the exact checkpoint.
+    pub fn resolve(&self, default: &str) -> anyhow::Result<(String, PolicyArgs)> {
+        let policy = self.policy.clone().unwrap_or_else(|| default.to_string());
+        let mut args = self.clone();
+        if args.latest {
+            let run = std::path::Path::new(&policy);
+            if !run.is_dir() {
+                anyhow::bail!("--latest needs a run folder as --policy, not `{policy}`");
+            }
+            args.checkpoint = Some(deepfoids_learn::checkpoint::latest_checkpoint(run)?);
+            args.latest = false;
         }
-        let run = std::path::Path::new(policy);
-        if !run.is_dir() {
-            anyhow::bail!("--latest needs a run folder as --policy, not `{policy}`");
-        }
-        self.checkpoint = Some(deepfoids_learn::checkpoint::latest_checkpoint(run)?);
-        self.latest = false;
-        Ok(())
+        Ok((policy, args))
     }
 
     pub fn options(&self) -> PolicyOptions {
@@ -144,6 +151,7 @@ pub fn from_rerun(run: &RunArgs) -> anyhow::Result<(SceneArgs, PolicyArgs)> {
                 .map_err(|e| anyhow::anyhow!("phase `{}`: {e}", run.phase))?,
         },
         PolicyArgs {
+            policy: Some(run.policy.clone()),
             checkpoint: run.checkpoint,
             deterministic: !run.stochastic,
             stochastic: false,

@@ -14,9 +14,6 @@ use std::path::PathBuf;
 pub struct EvalArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `foids_table1` (Table 1 as published), `boids`, `random`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
-    #[arg(long, default_value = "foids")]
-    pub policy: String,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
     /// Simulated seconds recorded
@@ -37,15 +34,14 @@ pub struct EvalArgs {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
-    let mut policy_args = args.policy_args.clone();
-    policy_args.resolve_latest(&args.policy)?;
+    let (policy_name, policy_args) = args.policy_args.resolve("foids")?;
     bounds::seconds("--seconds", args.seconds)?;
     bounds::warmup("--warmup", args.warmup)?;
     bounds::positive_at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &policy_args.options())?;
+    let mut policy = make_policy(dirs, &policy_name, sa.seed, &env, &policy_args.options())?;
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "runs/eval-{}-{}-s{}",
@@ -100,7 +96,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         seconds: eval.seconds,
         wall_seconds: eval.wall_seconds,
         ticks_per_second: eval.recorder.samples.len() as f64 / eval.wall_seconds.max(1e-9),
-        rerun: rerun(sa, &args.policy, &policy_args, args.warmup, args.seconds),
+        rerun: rerun(sa, &policy_name, &policy_args, args.warmup, args.seconds),
     };
     let summary = write_outputs(&out, &env, &eval, &meta)?;
     print_table(&meta, &summary);

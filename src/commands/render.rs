@@ -13,7 +13,7 @@ use deepfoids_experiments::bounds::{self, count_within, positive_at_most};
 use deepfoids_experiments::dataset::{
     Clip, DatasetSpec, dir_bytes, render_dataset, size_classes, ticks,
 };
-use deepfoids_experiments::load_scene;
+use deepfoids_experiments::{PolicyOptions, load_scene};
 use deepfoids_render::dataset::ImageFormat;
 use deepfoids_render::setup::{place_camera, poses, species_meshes};
 use deepfoids_render::{
@@ -27,9 +27,6 @@ use std::time::Instant;
 pub struct RenderArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `foids`, `boids`, `random`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
-    #[arg(long, default_value = "foids")]
-    pub policy: String,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
     /// Frames to render
@@ -112,8 +109,7 @@ fn image_size(width: u32, height: u32) -> Result<()> {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
-    let mut policy_args = args.policy_args.clone();
-    policy_args.resolve_latest(&args.policy)?;
+    let (policy_name, policy_args) = args.policy_args.resolve("foids")?;
     let frames = [1, MAX_FRAMES as u64];
     count_within("--frames", args.frames as u64, frames, "frames")?;
     count_within("--clip-frames", args.clip_frames as u64, frames, "frames")?;
@@ -136,7 +132,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
     let spec = DatasetSpec {
         scene: load_scene(dirs, &args.scene.scene, args.scene.phase)?,
         seed: args.scene.seed,
-        policy: args.policy.clone(),
+        policy: policy_name.clone(),
         policy_options: policy_args.options(),
         frames: args.frames,
         fps: args.fps,
@@ -200,13 +196,11 @@ pub fn bench(dirs: &ConfigDirs, args: &BenchRenderArgs) -> Result<()> {
     image_size(args.width, args.height)?;
     let scene = load_scene(dirs, &args.scene, deepfoids_env::Phase::Pretrain)?;
     let clip = ClipParams::from_scene(&scene, 0, args.seed, args.camera);
-    let pa = PolicyArgs {
+    let sampled = PolicyOptions {
         checkpoint: None,
-        deterministic: false,
-        stochastic: false,
-        latest: false,
+        stochastic: true,
     };
-    let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &pa.options())?;
+    let mut sim = Clip::new(dirs, scene.clone(), clip.seed, &args.policy, &sampled)?;
     sim.step(ticks(10.0, &sim.env))?;
     let renderer = Renderer::new(
         RenderConfig::default(),

@@ -42,9 +42,6 @@ pub struct ReplayArgs {
     /// Reward weights of this phase (the reward terms shown)
     #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
     pub phase: Phase,
-    /// Who acts: `foids`, `boids`, `random`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
-    #[arg(long, default_value = "foids")]
-    pub policy: String,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
     /// Simulated seconds
@@ -80,8 +77,7 @@ fn gif_view() -> impl TypedValueParser<Value = GifView> {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
-    let mut policy_args = args.policy_args.clone();
-    policy_args.resolve_latest(&args.policy)?;
+    let (policy_name, policy_args) = args.policy_args.resolve("foids")?;
     bounds::positive_at_most("--fps", args.fps, MAX_FPS, "frames/s")?;
     bounds::out_file("--out", &args.out)?;
     if let Some(gif) = &args.gif {
@@ -102,7 +98,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
                 seed: args.seed.unwrap_or(0),
                 phase: args.phase,
             };
-            let run = rerun(&sa, &args.policy, &policy_args, 0.0, args.seconds);
+            let run = rerun(&sa, &policy_name, &policy_args, 0.0, args.seconds);
             simulate(dirs, &run, args.fps, "simulated by deepfoids replay")?.0
         }
     };

@@ -16,9 +16,6 @@ use std::path::PathBuf;
 pub struct SimulateArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Who acts: `random`, `foids`, `foids_table1` (Table 1 as published), `boids`, a shipped policy (`pretrained:<species>`), a run folder (`runs/<id>`) or an exported `.onnx` file
-    #[arg(long, default_value = "random")]
-    pub policy: String,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
     /// Simulated seconds
@@ -30,8 +27,7 @@ pub struct SimulateArgs {
 }
 
 pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
-    let mut policy_args = args.policy_args.clone();
-    policy_args.resolve_latest(&args.policy)?;
+    let (policy_name, policy_args) = args.policy_args.resolve("random")?;
     bounds::seconds("--seconds", args.seconds)?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
@@ -42,7 +38,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     bounds::out_dir("--out", &out_dir)?;
     let _lock = lock_dir(&out_dir)?;
     let mut env = Env::new(scene, sa.seed);
-    let mut policy = make_policy(dirs, &args.policy, sa.seed, &env, &policy_args.options())?;
+    let mut policy = make_policy(dirs, &policy_name, sa.seed, &env, &policy_args.options())?;
     let csv_path = out_dir.join("trajectories.csv");
     let Simulated {
         names,
@@ -52,7 +48,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         wall,
     } = simulate_to_csv(&mut env, policy.as_mut(), args.seconds, &csv_path)?;
     // What `replay --from` needs to put the CSV back into its cage.
-    let rerun = rerun(sa, &args.policy, &policy_args, 0.0, args.seconds);
+    let rerun = rerun(sa, &policy_name, &policy_args, 0.0, args.seconds);
     write_atomic(
         out_dir.join("simulate.json"),
         serde_json::to_string_pretty(&rerun)?.as_bytes(),
