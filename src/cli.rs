@@ -22,7 +22,7 @@ pub struct Cli {
     /// Folder of the TOML configuration [default: ./configs, else $DEEPFOIDS_CONFIGS, else the repository's]
     #[arg(long, global = true, value_name = "DIR")]
     pub configs: Option<PathBuf>,
-    /// Reward profile: a folder of `rewards/` in the configuration with the pretrain and transfer weights and SPEC §4/§6.1/§6.2 switches (`thesis`, `legacy`, …) [default: thesis]
+    /// Reward profile: a folder of `rewards/` in the configuration with the pretrain and transfer weights and SPEC §4/§6.1/§6.2 switches (`mean_then_budget_space20`, `thesis`, `legacy`, …) [default: mean_then_budget_space20; the quickstart: thesis]
     #[arg(long, global = true, value_name = "NAME")]
     pub reward_profile: Option<String>,
     /// Worker threads, 1 to 1024 (0 is refused) [default: one per core]
@@ -106,8 +106,13 @@ pub fn run() -> Result<()> {
         .clone()
         .map(ConfigDirs::new)
         .unwrap_or_else(ConfigDirs::discover);
-    if let Some(profile) = &cli.reward_profile {
-        dirs = dirs.with_reward_profile(profile);
+    match (&cli.reward_profile, &cli.command) {
+        (Some(profile), _) => dirs = dirs.with_reward_profile(profile),
+        // The quickstart's own profile, unless one is asked for.
+        (None, None) => {
+            dirs = dirs.with_reward_profile(commands::quickstart::QUICKSTART.reward_profile)
+        }
+        (None, Some(_)) => {}
     }
     match cli.command {
         None => commands::quickstart::default_job(&dirs),

@@ -2,7 +2,7 @@
 //! `r_E` accrue at every physics step while `r_NC` is paid once per contact
 //! start; SPEC §6.2's extensions. Hand-computed on seabream (BL = 0.34 m,
 //! d_sense = 1.02 m, k = 5, dt_sim = 0.02 s) and coho (BL = 0.49 m, k = 10),
-//! with the `thesis` profile's pretraining weights (the default profile).
+//! with the `thesis` profile's pretraining weights (`common::dirs`).
 mod common;
 use common::*;
 use deepfoids_env::config::{ActionTiming, NeighbourForm, RewardTiming};
@@ -10,13 +10,41 @@ use deepfoids_env::kinematics::angle_deg;
 use glam::Vec3;
 
 #[test]
-fn the_default_profile_is_timed_as_unity_ran_it() {
+fn the_thesis_profile_is_timed_as_unity_ran_it() {
     let s = scene("seabream_default", 1);
     assert_eq!(s.reward_profile, "thesis");
     assert_eq!(s.rewards.timing.actions, ActionTiming::PerStep);
     assert_eq!(s.rewards.timing.rewards, RewardTiming::PerStep);
     assert_eq!(s.rewards.timing.turn_step_deg, 1.0);
     assert!(s.rewards.extensions.boundary_ends_episode);
+}
+
+/// The default profile (docs/reproduction/NOTES.md, session 34's rule):
+/// `mean_then_budget_space20` — the thesis' timing; the net bounces; a 0.66 BL
+/// personal space at 20 per neighbour inside it; r_ND the mean in pretraining
+/// and the sum with a budget of 90 neighbours in the transfer.
+#[test]
+fn the_default_profile_is_mean_then_budget_space20() {
+    use deepfoids_env::config::DEFAULT_REWARD_PROFILE;
+    use deepfoids_env::{ConfigDirs, Phase, Scene};
+    assert_eq!(DEFAULT_REWARD_PROFILE, "mean_then_budget_space20");
+    let d = ConfigDirs::new(dirs().root);
+    let pre = Scene::load(&d, "coho_default", Phase::Pretrain).unwrap();
+    let tr = Scene::load(&d, "coho_default", Phase::Transfer).unwrap();
+    assert_eq!(pre.reward_profile, "mean_then_budget_space20");
+    for s in [&pre, &tr] {
+        let x = &s.rewards.extensions;
+        assert_eq!(s.rewards.timing.actions, ActionTiming::PerStep);
+        assert_eq!(s.rewards.timing.rewards, RewardTiming::PerStep);
+        assert!(!x.boundary_ends_episode);
+        assert_eq!(
+            (x.personal_space_bl, x.personal_space_penalty),
+            (0.66, 20.0)
+        );
+    }
+    assert_eq!(pre.rewards.extensions.neighbour_form, NeighbourForm::Mean);
+    assert_eq!(tr.rewards.extensions.neighbour_form, NeighbourForm::Sum);
+    assert_eq!(tr.rewards.extensions.neighbour_budget, 90);
 }
 
 /// A full speed action: 4.1 BL/s per second × 0.02 s = 0.082 BL/s per step,
@@ -255,9 +283,8 @@ fn size_weighted_alignment() {
 /// Nishiki, starts to sink), and nothing when only its own species counts.
 #[test]
 fn conspecific_only_alignment() {
-    use deepfoids_env::{ConfigDirs, Phase, Scene};
-    let dirs = ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
-    let mut s = Scene::load(&dirs, "three_species", Phase::Pretrain).unwrap();
+    use deepfoids_env::{Phase, Scene};
+    let mut s = Scene::load(&dirs(), "three_species", Phase::Pretrain).unwrap();
     s.physics.chase_probability = 0.0;
     for b in &mut s.behaviours {
         b.count = 1;

@@ -67,12 +67,14 @@ fn run_in(
     .unwrap()
 }
 
-/// Random fish in the 3 m cube for 400 decisions (several respawns): every
-/// stack rebuilt from the buffer equals the environment's, the proximity up to
+/// Random fish in the 3 m cube for 400 decisions (several respawns: the
+/// `thesis` profile, where a net collision ends the episode): every stack
+/// rebuilt from the buffer equals the environment's, the proximity up to
 /// 1/510 and the type channels exactly, including the zero frames after respawns.
 #[test]
 fn rebuilt_observations_equal_the_environments() {
-    let scene = Scene::load(&dirs(), "seabream_default", Phase::Pretrain).unwrap();
+    let thesis = dirs().with_reward_profile("thesis");
+    let scene = Scene::load(&thesis, "seabream_default", Phase::Pretrain).unwrap();
     let mut env = Env::new(scene, 3);
     let n = env.behaviours()[0].count;
     let mut policy = RandomPolicy { seed: 3 };

@@ -58,9 +58,11 @@ pub struct ConfigDirs {
     pub reward_profile: String,
 }
 
-/// The reward profile used unless `--reward-profile` names another (README,
-/// "Reward profiles": chosen by the variant table of docs/reproduction/NOTES.md).
-pub const DEFAULT_REWARD_PROFILE: &str = "thesis";
+/// The reward profile used unless `--reward-profile` names another
+/// (docs/reward-profiles.md): the profile that held the most claims in a
+/// `quick` reproduction (docs/reproduction/NOTES.md, session 34), with which
+/// the shipped policies are trained.
+pub const DEFAULT_REWARD_PROFILE: &str = "mean_then_budget_space20";
 
 impl ConfigDirs {
     pub fn new(root: impl Into<PathBuf>) -> Self {

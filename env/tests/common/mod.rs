@@ -7,9 +7,15 @@ pub use deepfoids_testkit::copy_dir;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
+/// The shipped configs with the `thesis` reward profile (Table 4.1 with
+/// SPEC §4 and §6.1 timing): the hand-computed expectations use its weights,
+/// whatever the default profile is.
 pub fn dirs() -> ConfigDirs {
-    ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"))
+    ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs")).with_reward_profile(THESIS)
 }
+
+/// The reward profile the hand-computed expectations use.
+pub const THESIS: &str = "thesis";
 
 /// A copy of the real configs in a temp folder, with `edit` applied to one file.
 pub fn configs_with(name: &str, file: &str, edit: impl FnOnce(String) -> String) -> PathBuf {
@@ -29,9 +35,13 @@ pub fn configs_with(name: &str, file: &str, edit: impl FnOnce(String) -> String)
 
 /// The error of loading `scene` from the configs at `root`.
 pub fn load_err(root: &Path, scene: &str) -> String {
-    Scene::load(&ConfigDirs::new(root), scene, Phase::Pretrain)
-        .unwrap_err()
-        .to_string()
+    Scene::load(
+        &ConfigDirs::new(root).with_reward_profile(THESIS),
+        scene,
+        Phase::Pretrain,
+    )
+    .unwrap_err()
+    .to_string()
 }
 
 /// Scene `id` cut down to `n` fish of body scale exactly 1.0.

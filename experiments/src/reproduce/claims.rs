@@ -3,8 +3,9 @@
 //! The criteria were written down, in this file, before the `full` run they
 //! judge (commit history shows it); they are not tuned after the fact. Every
 //! value is a mean over training seeds × evaluation seeds, each evaluation a
-//! deterministic run of the final policy: `warmup` s unrecorded, then
-//! `seconds` s recorded (the profile's).
+//! run of the final policy acting with sampled actions (`--deterministic`:
+//! the mean action): `warmup` s unrecorded, then `seconds` s recorded (the
+//! profile's).
 //!
 //! Terms: *cage rotation* is |mean over fish of the tangential component of the
 //! horizontal heading about the cage's vertical axis| (1: every fish swims

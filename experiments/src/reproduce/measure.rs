@@ -1,5 +1,5 @@
-//! What the claims are judged on: deterministic evaluations of the trained
-//! policies (and of Boids) in their scenes, each cached as JSON beside the
+//! What the claims are judged on: evaluations of the trained policies
+//! (sampled actions unless `--deterministic`) (and of Boids) in their scenes, each cached as JSON beside the
 //! runs, and the learning curves read back from each stage's `scalars.csv`.
 
 use super::{Profile, Stage};
