@@ -118,10 +118,27 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         assert!(card.contains(&format!("`pretrained:{sp}`")), "{card}");
         assert!(card.contains("boundary collisions per fish-hour"), "{card}");
     }
-    // Coho in the density cages, inside coho's folder; shipping again
-    // (nothing trained or measured) keeps them when it replaces coho's.
-    let o = deepfoids(&again, None);
+    // Coho in the density cages, inside coho's folder. Shipping two of the
+    // five again (nothing trained or measured) keeps the third coho one when
+    // it replaces coho's folder.
+    let mut some = again.clone();
+    some.extend(["--ship-only", "coho,coho/density_dense"]);
+    let o = deepfoids(&some, None);
     assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(t.contains("shipped coho to"), "{t}");
+    assert!(t.contains("shipped coho/density_dense to"), "{t}");
+    assert!(!t.contains("shipped coho/density_sparse"), "{t}");
+    assert!(!t.contains("shipped seabream"), "{t}");
+    let mut unknown = again.clone();
+    unknown.extend(["--ship-only", "coho/tuna"]);
+    let o = deepfoids(&unknown, None);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("--ship-only: no shipped policy `coho/tuna`; the shipped ones are coho, yellowtail, seabream, coho/density_sparse, coho/density_dense"),
+        "{}",
+        text(&o)
+    );
     for scene in ["density_sparse", "density_dense"] {
         let dir = ship.join("coho").join(scene);
         assert!(dir.join("final/coho_regular.onnx").is_file(), "{scene}");

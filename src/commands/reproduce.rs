@@ -28,9 +28,12 @@ pub struct ReproduceArgs {
     /// Scale the evaluation's simulated seconds by this factor (tests)
     #[arg(long, default_value_t = 1.0, hide = true)]
     pub eval_scale: f64,
-    /// After the report, copy each species' transferred default policy with a model card into this folder (`policies` ships them with the repository)
+    /// After the report, copy the shipped policies (each species' transferred default policy, coho's density-cage transfers) with model cards into this folder (`policies` ships them with the repository); their stages are trained first
     #[arg(long, value_name = "DIR")]
     pub ship: Option<PathBuf>,
+    /// With --ship: ship only these (comma-separated: `coho`, `coho/density_dense`, …); the others in the folder stay
+    #[arg(long, value_delimiter = ',', value_name = "NAME", requires = "ship")]
+    pub ship_only: Vec<String>,
     /// No progress bars or progress lines while training
     #[arg(long)]
     pub quiet: bool,
@@ -62,6 +65,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceArgs) -> Result<()> {
             budget_scale: args.budget_scale,
             eval_scale: args.eval_scale,
             ship: args.ship.clone(),
+            ship_only: args.ship_only.clone(),
             quiet: args.quiet,
             deterministic: args.deterministic,
             mode: args

@@ -47,9 +47,12 @@ pub struct ReproduceOptions {
     pub budget_scale: f64,
     /// Scale the evaluation's simulated seconds by this factor, in (0, 1] (tests).
     pub eval_scale: f64,
-    /// After the report, copy each species' transferred default policy with a
-    /// model card into this folder (`policies` ships them with the repository).
+    /// After the report, copy each [`ship::SHIPPED`] policy with a model card
+    /// into this folder (`policies` ships them with the repository).
     pub ship: Option<PathBuf>,
+    /// Ship only these (`coho`, `coho/density_dense`, …; empty: every
+    /// shipped policy); the others already in the folder stay.
+    pub ship_only: Vec<String>,
     /// No progress bars or progress lines while training.
     pub quiet: bool,
     /// Evaluate with the policies' means instead of sampled actions (SPEC §9).
@@ -262,10 +265,17 @@ impl Stage {
 
 /// Stages `claims` need, with everything they start from, in run order.
 pub fn stages_for(claims: &[&claims::Claim]) -> Vec<Stage> {
-    let mut want: Vec<String> = claims
-        .iter()
-        .flat_map(|c| c.stages.iter().map(|s| s.to_string()))
-        .collect();
+    with_dependencies(
+        claims
+            .iter()
+            .flat_map(|c| c.stages.iter().map(|s| s.to_string()))
+            .collect(),
+    )
+}
+
+/// The stages named in `want` and every stage they start from, in
+/// [`Stage::all`]'s order.
+fn with_dependencies(mut want: Vec<String>) -> Vec<Stage> {
     loop {
         let extra: Vec<String> = want
             .iter()
@@ -324,16 +334,13 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
     profile.warmup *= args.eval_scale;
     profile.seconds *= args.eval_scale;
     let chosen = claims::select(&args.only)?;
-    // Shipping needs every shipped policy's stages.
-    let mut needs = chosen.clone();
+    // Shipping needs the stages of the policies it ships.
+    let shipped = ship::select(&args.ship_only)?;
+    let mut want: Vec<String> = stages_for(&chosen).into_iter().map(|s| s.name).collect();
     if args.ship.is_some() {
-        for id in ship::SHIPPED_CLAIMS {
-            if !needs.iter().any(|c| c.id == id) {
-                needs.extend(claims::select(&[id.to_string()])?);
-            }
-        }
+        want.extend(shipped.iter().map(|(_, scene)| ship::stage_of(scene)));
     }
-    let stages = stages_for(&needs);
+    let stages = with_dependencies(want);
     match &args.mode {
         Mode::All => {}
         Mode::Plan => {
@@ -414,7 +421,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReproduceOptions) -> Result<()> {
         args.out.join("report").join("REPORT.md").display()
     );
     if let Some(dest) = &args.ship {
-        ship::ship(dirs, &profile, &args.out, dest)?;
+        ship::ship(dirs, &profile, &args.out, dest, &shipped)?;
     }
     Ok(())
 }

@@ -29,8 +29,32 @@ pub const SHIPPED: [(&str, &str); 5] = [
     ("coho", "density_dense"),
 ];
 
-/// The claims whose stages train every [`SHIPPED`] policy.
-pub const SHIPPED_CLAIMS: [&str; 2] = ["circle", "density"];
+/// The stage whose final policy ships as the policy transferred into `scene`.
+pub fn stage_of(scene: &str) -> String {
+    format!("transfer-{scene}")
+}
+
+/// The [`SHIPPED`] policies named (`coho`, `coho/density_dense`, …), in
+/// [`SHIPPED`]'s order; every one when `names` is empty. An unknown name is
+/// refused with the list.
+pub fn select(names: &[String]) -> Result<Vec<(&'static str, &'static str)>> {
+    let all: Vec<String> = SHIPPED
+        .iter()
+        .map(|(sp, sc)| shipped_name(sp, sc))
+        .collect();
+    if let Some(bad) = names.iter().find(|n| !all.contains(n)) {
+        bail!(
+            "--ship-only: no shipped policy `{bad}`; the shipped ones are {}",
+            all.join(", ")
+        );
+    }
+    Ok(SHIPPED
+        .into_iter()
+        .zip(&all)
+        .filter(|(_, name)| names.is_empty() || names.contains(name))
+        .map(|(p, _)| p)
+        .collect())
+}
 
 /// The name of the shipped policy of `species` transferred into `scene`:
 /// `coho` for its default scene, `coho/density_dense` otherwise.
@@ -156,20 +180,23 @@ impl Card {
     }
 }
 
-/// Measure (cached) and ship every [`SHIPPED`] policy.
-pub fn ship(dirs: &ConfigDirs, profile: &Profile, out: &Path, dest: &Path) -> Result<()> {
+/// Measure (cached) and ship the `shipped` policies ([`select`]).
+pub fn ship(
+    dirs: &ConfigDirs,
+    profile: &Profile,
+    out: &Path,
+    dest: &Path,
+    shipped: &[(&str, &str)],
+) -> Result<()> {
     let ts = profile.seeds[0];
     std::fs::create_dir_all(dest).with_context(|| format!("cannot create {}", dest.display()))?;
-    for (sp, scene) in SHIPPED {
+    for &(sp, scene) in shipped {
         let scene = scene.to_string();
         let name = shipped_name(sp, &scene);
-        let stage = Stage::find(&format!("transfer-{scene}"));
+        let stage = Stage::find(&stage_of(&scene));
         let run = out.join(format!("s{ts}")).join(&stage.name);
         if !run.join("final").join("state.json").is_file() {
-            bail!(
-                "cannot ship {name}: {} has no final policy (run the `circle` and `density` claims first)",
-                run.display()
-            );
+            bail!("cannot ship {name}: {} has no final policy", run.display());
         }
         let ms: Vec<_> = profile
             .eval_seeds
@@ -415,7 +442,7 @@ fn card_markdown(c: &Card) -> String {
     };
     let _ = writeln!(
         md,
-        "## Use\n\n```sh\ndeepfoids eval --scene {scene} --phase transfer --policy pretrained:{name} --warmup 10{rp}\ndeepfoids render --scene {scene} --policy pretrained:{name} --out runs/dataset-{dash}{rp}\ndeepfoids train --scene <scene> --phase transfer --init-from pretrained:{name}{rp}   # transfer into another cage\n```\n\n## Retrain\n\n```sh\ndeepfoids reproduce --profile {profile} --only {claim} --out runs/repro --ship policies{rp}\n```\n\nor by hand: `deepfoids train --scene {sp}_default --phase pretrain --run-id pre{rp}` then `deepfoids train --scene {scene} --phase transfer --init-from runs/pre{rp}`.",
+        "## Use\n\n```sh\ndeepfoids eval --scene {scene} --phase transfer --policy pretrained:{name} --warmup 10{rp}\ndeepfoids render --scene {scene} --policy pretrained:{name} --out runs/dataset-{dash}{rp}\ndeepfoids train --scene <scene> --phase transfer --init-from pretrained:{name}{rp}   # transfer into another cage\n```\n\n## Retrain\n\n```sh\ndeepfoids reproduce --profile {profile} --only {claim} --out runs/repro --ship policies --ship-only {name}{rp}\n```\n\nor by hand: `deepfoids train --scene {sp}_default --phase pretrain --run-id pre{rp}` then `deepfoids train --scene {scene} --phase transfer --init-from runs/pre{rp}`.",
         scene = c.scene,
         dash = name.replace('/', "-"),
         profile = c.profile,
