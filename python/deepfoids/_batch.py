@@ -99,7 +99,9 @@ class BatchEnv:
     weights (``"pretrain"`` or ``"transfer"``); `seed` draws the school (traits,
     poses, respawns, chases); `configs` is a configuration folder (default: the
     one shipped in the package); `max_episode_decisions` overrides the scene's
-    per-agent episode limit.
+    per-agent episode limit; `reward_profile` names a folder of
+    ``configs/rewards/`` (default: the CLI's default profile; ``"thesis"`` ends a
+    fish's episode at the net, the default profile pushes it back inside).
     """
 
     def __init__(
@@ -109,13 +111,19 @@ class BatchEnv:
         seed: int = 0,
         configs: Union[str, PathLike, None] = None,
         max_episode_decisions: Optional[int] = None,
+        reward_profile: Optional[str] = None,
     ):
         if phase not in PHASES:
             raise ValueError(f"unknown phase {phase!r}; allowed: {', '.join(PHASES)}")
         self._seed = _check_seed(seed)
         self._episode = -1
         self._core = _core.Core(
-            str(scene), phase, self._seed, _configs_dir(configs), max_episode_decisions
+            str(scene),
+            phase,
+            self._seed,
+            _configs_dir(configs),
+            max_episode_decisions,
+            reward_profile,
         )
         self._core_used = False
         self.behaviours: list[Behaviour] = [

@@ -73,11 +73,14 @@ class DeepFoidsParallelEnv(ParallelEnv):
         configs=None,
         max_episode_decisions: Optional[int] = None,
         render_mode: Optional[str] = None,
+        reward_profile: Optional[str] = None,
     ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"unknown render_mode {render_mode!r}; allowed: None, 'rgb_array'")
         self.render_mode = render_mode
-        self.batch_env = BatchEnv(scene, phase, seed, configs, max_episode_decisions)
+        self.batch_env = BatchEnv(
+            scene, phase, seed, configs, max_episode_decisions, reward_profile=reward_profile
+        )
         behaviours = self.batch_env.behaviours
         n = self.batch_env.n_agents
         #: Per fish: its first agent name, behaviour and rows.
@@ -230,5 +233,6 @@ def _parse_fish(agent: str, first_names: dict[str, int]) -> Optional[int]:
 
 
 #: ``deepfoids.parallel_env(scene="coho_default", phase="pretrain", seed=0, configs=None,
-#: max_episode_decisions=None, render_mode=None)``, as PettingZoo environments name it.
+#: max_episode_decisions=None, render_mode=None, reward_profile=None)``, as PettingZoo
+#: environments name it.
 parallel_env = DeepFoidsParallelEnv

@@ -171,15 +171,18 @@ impl Core {
 #[pymethods]
 impl Core {
     /// Load `scene` (an id of `configs/scenes/` or a path to a scene TOML) with the
-    /// reward weights of `phase`, and build its world from `seed`.
+    /// reward weights of `phase` in `reward_profile` (a folder of
+    /// `configs/rewards/`; default: the CLI's default profile), and build its
+    /// world from `seed`.
     #[new]
-    #[pyo3(signature = (scene, phase, seed, configs, max_episode_decisions=None))]
+    #[pyo3(signature = (scene, phase, seed, configs, max_episode_decisions=None, reward_profile=None))]
     fn new(
         scene: &str,
         phase: &str,
         seed: u64,
         configs: PathBuf,
         max_episode_decisions: Option<i64>,
+        reward_profile: Option<String>,
     ) -> PyResult<Self> {
         let phase: Phase = phase.parse().map_err(value_error)?;
         if !configs.join("scenes").is_dir() {
@@ -188,8 +191,11 @@ impl Core {
                 configs.display()
             )));
         }
-        let mut scene =
-            Scene::load(&ConfigDirs::new(configs), scene, phase).map_err(value_error)?;
+        let mut dirs = ConfigDirs::new(configs);
+        if let Some(profile) = reward_profile {
+            dirs = dirs.with_reward_profile(&profile);
+        }
+        let mut scene = Scene::load(&dirs, scene, phase).map_err(value_error)?;
         if let Some(m) = max_episode_decisions {
             if !(1..=i64::from(u32::MAX)).contains(&m) {
                 return Err(value_error(format!(

@@ -23,7 +23,9 @@ def test_pettingzoo_parallel_seed(scene):
 def test_api_with_short_episodes_runs_out_of_agents():
     """Episodes of 30 decisions: the API test sees terminations, new lives and
     the final step where every agent is truncated and `agents` empties."""
-    env = deepfoids.parallel_env(scene="seabream_default", seed=2, max_episode_decisions=30)
+    env = deepfoids.parallel_env(
+        scene="seabream_default", seed=2, max_episode_decisions=30, reward_profile="thesis"
+    )
     parallel_api_test(env, num_cycles=1000)
     assert env.agents == []
 
@@ -66,7 +68,9 @@ def test_every_observation_is_inside_its_space():
 
 
 def test_a_terminated_fish_comes_back_as_the_next_life_of_its_agent():
-    env = deepfoids.parallel_env(scene="seabream_default", seed=4)
+    # `thesis`: a net collision ends the fish's episode (the default profile
+    # pushes it back inside instead).
+    env = deepfoids.parallel_env(scene="seabream_default", seed=4, reward_profile="thesis")
     env.reset()
     # Full speed ahead, always pitching up: every fish reaches a boundary soon.
     for _ in range(400):
@@ -162,3 +166,16 @@ def test_agent_names_and_state():
     np.testing.assert_allclose(np.linalg.norm(state[:, 3:6], axis=1), 1.0, atol=1e-5)
     with pytest.raises(KeyError, match="not an agent"):
         env.observation_space("salmon_1")
+
+
+def test_the_reward_profile_is_chosen_by_name():
+    # The default profile pushes a fish back from the net: full speed ahead
+    # never ends an episode there.
+    env = deepfoids.parallel_env(scene="seabream_default", seed=4)
+    env.reset()
+    for _ in range(100):
+        actions = {a: np.array([1.0, 1.0, 0.0], dtype=np.float32) for a in env.agents}
+        obs, rew, term, trunc, info = env.step(actions)
+        assert not any(term.values())
+    with pytest.raises(ValueError, match="tuna"):
+        deepfoids.parallel_env(scene="seabream_default", reward_profile="tuna")

@@ -540,8 +540,10 @@ pub(crate) mod tests {
     use deepfoids_env::policy::action_buffers;
     use deepfoids_env::{ConfigDirs, Phase, Policy, RandomPolicy, Scene};
 
+    /// `scene` in the `thesis` reward profile, whose net collisions end the
+    /// episode: the recordings tested here hold respawns.
     pub(crate) fn env(scene: &str, seed: u64) -> Env {
-        let dirs = ConfigDirs::discover();
+        let dirs = ConfigDirs::discover().with_reward_profile("thesis");
         Env::new(Scene::load(&dirs, scene, Phase::Pretrain).unwrap(), seed)
     }
 
