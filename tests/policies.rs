@@ -1,24 +1,32 @@
-//! The policies that ship in `policies/` (issue 14): each loads, its Burn
-//! weights act as its ONNX twin does (≤ 1e-4), and an evaluation in its
-//! default scene, in the card's reward profile and evaluation mode, still gives
+//! The policies that ship in `policies/` (issues 14 and 21): each loads, its
+//! Burn weights act as its ONNX twin does (≤ 1e-4), and an evaluation in its
+//! own scene, in the card's reward profile and evaluation mode, still gives
 //! its model card's figures — so a change to the environment that breaks the
 //! shipped policies fails here.
 
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{ConfigDirs, Env, Phase, Policy};
-use deepfoids_experiments::reproduce::ship::{Card, SPECIES, figure_values};
+use deepfoids_experiments::reproduce::ship::{Card, SHIPPED, figure_values, shipped_name};
 use deepfoids_experiments::{load_scene, load_trained};
 use std::path::PathBuf;
 
-fn shipped(species: &str) -> (PathBuf, Card) {
-    let dir = deepfoids_experiments::pretrained::resolve(&format!("pretrained:{species}"))
+/// Every shipped policy by name: `coho`, …, `coho/density_dense`.
+fn names() -> Vec<String> {
+    SHIPPED
+        .iter()
+        .map(|(sp, scene)| shipped_name(sp, scene))
+        .collect()
+}
+
+fn shipped(name: &str) -> (PathBuf, Card) {
+    let dir = deepfoids_experiments::pretrained::resolve(&format!("pretrained:{name}"))
         .unwrap_or_else(|e| panic!("{e}"));
     let card: Card = toml::from_str(
         &std::fs::read_to_string(dir.join("card.toml"))
             .unwrap_or_else(|e| panic!("{}: {e}", dir.display())),
     )
     .unwrap();
-    assert_eq!(card.species, species);
+    assert_eq!(card.name(), name);
     (dir, card)
 }
 
@@ -27,26 +35,29 @@ fn configs() -> ConfigDirs {
 }
 
 #[test]
-fn every_species_ships_a_policy_with_a_card() {
+fn every_shipped_policy_has_a_card() {
     let root = deepfoids_experiments::pretrained::root();
+    let mut want = names();
+    want.sort();
     assert_eq!(
         deepfoids_experiments::pretrained::available(&root),
-        vec!["coho", "seabream", "yellowtail"],
+        want,
         "in {}",
         root.display()
     );
-    for sp in SPECIES {
-        let (dir, card) = shipped(sp);
-        let md = root.join(format!("{sp}.md"));
+    for (sp, scene) in SHIPPED {
+        let name = shipped_name(sp, scene);
+        let (dir, card) = shipped(&name);
+        let md = root.join(format!("{name}.md"));
         assert!(md.is_file(), "{}", md.display());
         assert!(
             dir.join("final")
                 .join(format!("{sp}_regular.onnx"))
                 .is_file()
         );
-        assert_eq!(card.scene, format!("{sp}_default"));
+        assert_eq!((card.species.as_str(), card.scene.as_str()), (sp, scene));
         for k in ["p", "m", "speed_bl", "boundary_per_fish_hour", "milling"] {
-            assert!(card.figures.contains_key(k), "{sp}: {k}");
+            assert!(card.figures.contains_key(k), "{name}: {k}");
         }
     }
 }
@@ -55,9 +66,10 @@ fn every_species_ships_a_policy_with_a_card() {
 /// tract running the exported ONNX, on observations of the school after 2 s.
 #[test]
 fn shipped_policies_match_their_onnx_twins() {
-    for sp in SPECIES {
-        let (dir, card) = shipped(sp);
-        let scene = load_scene(&configs(), &card.scene, Phase::Transfer).unwrap();
+    for name in names() {
+        let (dir, card) = shipped(&name);
+        let dirs = configs().with_reward_profile(&card.reward_profile);
+        let scene = load_scene(&dirs, &card.scene, Phase::Transfer).unwrap();
         let mut env = Env::new(scene, 7);
         let mut policy = load_trained(&dir, None, &env, true, 0).unwrap();
         let mut actions = action_buffers(&env);
@@ -84,7 +96,7 @@ fn shipped_policies_match_their_onnx_twins() {
                     .zip(&want)
                     .map(|(a, b)| (a - b).abs())
                     .fold(0.0f32, f32::max);
-                assert!(worst <= 1e-4, "{sp} {what}: max |Δ| {worst} against ONNX");
+                assert!(worst <= 1e-4, "{name} {what}: max |Δ| {worst} against ONNX");
             }
         }
         let _ = policy.name();
@@ -95,8 +107,8 @@ fn shipped_policies_match_their_onnx_twins() {
 #[test]
 fn shipped_policies_still_give_their_cards_figures() {
     let mut failures = vec![];
-    for sp in SPECIES {
-        let (dir, card) = shipped(sp);
+    for name in names() {
+        let (dir, card) = shipped(&name);
         let dirs = configs().with_reward_profile(&card.reward_profile);
         let scene = load_scene(&dirs, &card.scene, Phase::Transfer).unwrap();
         let env_seed = card.env_seed(card.eval_seeds[0]);
@@ -118,12 +130,12 @@ fn shipped_policies_still_give_their_cards_figures() {
         .unwrap();
         let s = eval.recorder.summary(eval.seconds);
         let measured = figure_values(&s);
-        eprintln!("{sp}: measured {measured:?}");
+        eprintln!("{name}: measured {measured:?}");
         for (k, x) in measured {
             let f = &card.figures[k];
             if !f.admits(x) {
                 failures.push(format!(
-                    "{sp}: {k} = {x:.4}, the card says {:.4} (first seed; mean {:.4} ± {:.4}, tolerance {:.4})",
+                    "{name}: {k} = {x:.4}, the card says {:.4} (first seed; mean {:.4} ± {:.4}, tolerance {:.4})",
                     f.first.unwrap_or(f.mean),
                     f.mean,
                     f.sd,
