@@ -15,7 +15,7 @@
 //! add minutes of build and a container writer for a clip. `gif` is pure Rust
 //! and already in the dependency tree.
 
-use crate::Recording;
+use crate::recording::Recording;
 use crate::recording::{COLOURS, colour};
 use glam::{Vec2, Vec3};
 use plotters::prelude::*;

@@ -14,7 +14,7 @@ use crate::frames::CompactGrids;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::autodiff::grads::Gradients;
-use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::autodiff::ops::{Backward, NodeGuard, Ops, OpsKind};
 use burn::backend::flex::FlexTensor;
 use burn::backend::{Autodiff, Flex};
 use burn::nn::Linear;
@@ -70,6 +70,17 @@ fn prim<const D: usize>(t: Tensor<D>) -> Option<Prim> {
         Ok(p) => Some(Prim::Tracked(p)),
         Err(_) => t.try_into_primitive::<Flex>().ok().map(Prim::Plain),
     }
+}
+
+/// The autodiff graph nodes of inputs that [`prims`] found all tracked.
+fn graph_nodes(prims: &[Prim]) -> Vec<NodeGuard> {
+    prims
+        .iter()
+        .map(|p| match p {
+            Prim::Tracked(t) => t.node(),
+            Prim::Plain(_) => unreachable!("all tracked"),
+        })
+        .collect()
 }
 
 impl Prim {
@@ -268,13 +279,7 @@ pub fn encode_with(
         grids: grid_data,
         saved: Arc::new(saved),
     };
-    let guards: Vec<_> = prims
-        .iter()
-        .map(|p| match p {
-            Prim::Tracked(t) => t.node(),
-            Prim::Plain(_) => unreachable!("all tracked"),
-        })
-        .collect();
+    let guards = graph_nodes(&prims);
     macro_rules! finish {
         ($n:literal) => {{
             let guards: [_; $n] = guards.try_into().expect("1 + 6·K inputs");
@@ -366,13 +371,7 @@ pub fn dense_silu(x: Tensor<2>, layer: &Linear) -> Option<Tensor<2>> {
         },
         z: Arc::new(z),
     };
-    let guards: Vec<_> = prims
-        .iter()
-        .map(|p| match p {
-            Prim::Tracked(t) => t.node(),
-            Prim::Plain(_) => unreachable!("all tracked"),
-        })
-        .collect();
+    let guards = graph_nodes(&prims);
     let guards: [_; 3] = guards.try_into().expect("three inputs");
     let ad = match DenseBackward
         .prepare::<NoCheckpointing>(guards)
