@@ -2,7 +2,7 @@
 
 mod support;
 
-use support::{TempDir, cli, cli_ok, json, temp_path, text};
+use support::{TempDir, cli, cli_fails, cli_ok, json, temp_path, text};
 
 fn temp(name: &str) -> TempDir {
     temp_path("cli", name)
@@ -119,13 +119,8 @@ fn sensor_view_writes_a_png() {
 
 #[test]
 fn an_unknown_scene_fails_with_the_list() {
-    let o = cli("simulate --scene salmon");
-    assert!(!o.status.success());
-    let t = text(&o);
-    assert!(
-        t.contains("unknown scene `salmon`") && t.contains("coho_default"),
-        "{t}"
-    );
+    let t = cli_fails("simulate --scene salmon", "unknown scene `salmon`");
+    assert!(t.contains("coho_default"), "{t}");
     assert_eq!(
         t.lines().filter(|l| l.starts_with("error:")).count(),
         1,
@@ -135,15 +130,13 @@ fn an_unknown_scene_fails_with_the_list() {
 
 #[test]
 fn an_unknown_policy_fails_clearly() {
-    let o = cli("simulate --scene seabream_default --policy genius");
-    assert!(!o.status.success());
-    assert!(text(&o).contains("unknown policy `genius`"), "{}", text(&o));
-    let o = cli("simulate --scene seabream_default --policy runs/none/policy.onnx");
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("policy `runs/none/policy.onnx` does not exist"),
-        "{}",
-        text(&o)
+    cli_fails(
+        "simulate --scene seabream_default --policy genius",
+        "unknown policy `genius`",
+    );
+    cli_fails(
+        "simulate --scene seabream_default --policy runs/none/policy.onnx",
+        "policy `runs/none/policy.onnx` does not exist",
     );
 }
 
@@ -230,14 +223,12 @@ fn train_export_and_eval_through_onnx() {
         assert!(run.join(f).exists(), "{f} missing");
     }
     // Refuses to overwrite without --resume/--force.
-    let again = cli(&format!(
-        "train --scene seabream_default --steps 600 --allow-no-update --seed 5 --runs-dir {} --run-id tiny",
-        runs.display()
-    ));
-    assert!(
-        !again.status.success() && text(&again).contains("--resume"),
-        "{}",
-        text(&again)
+    cli_fails(
+        &format!(
+            "train --scene seabream_default --steps 600 --allow-no-update --seed 5 --runs-dir {} --run-id tiny",
+            runs.display()
+        ),
+        "--resume",
     );
 
     let onnx = runs.join("policy.onnx");
@@ -253,15 +244,13 @@ fn train_export_and_eval_through_onnx() {
         std::fs::read(run.join("final/seabream_regular.onnx")).unwrap()
     );
     // A SAC run does not start from a PPO run.
-    let o = cli(&format!(
-        "train --algo sac --scene seabream_default --phase transfer --init-from {} --runs-dir {} --run-id sac-from-ppo --quiet",
-        run.display(),
-        runs.display()
-    ));
-    assert!(
-        !o.status.success() && text(&o).contains("holds a ppo policy; sac is needed"),
-        "{}",
-        text(&o)
+    cli_fails(
+        &format!(
+            "train --algo sac --scene seabream_default --phase transfer --init-from {} --runs-dir {} --run-id sac-from-ppo --quiet",
+            run.display(),
+            runs.display()
+        ),
+        "holds a ppo policy; sac is needed",
     );
     let mut pm = vec![];
     for policy in [onnx.to_str().unwrap(), run.to_str().unwrap()] {
@@ -285,14 +274,12 @@ fn train_export_and_eval_through_onnx() {
         pm[1]
     );
     // A seabream policy cannot drive a coho scene.
-    let o = cli(&format!(
-        "eval --scene coho_small --policy {} --seconds 1",
-        onnx.display()
-    ));
-    assert!(
-        !o.status.success() && text(&o).contains("seabream policy"),
-        "{}",
-        text(&o)
+    cli_fails(
+        &format!(
+            "eval --scene coho_small --policy {} --seconds 1",
+            onnx.display()
+        ),
+        "seabream policy",
     );
 }
 
@@ -346,21 +333,18 @@ fn compare_ppo_and_sac_runs() {
     assert!(md.contains("2 seed(s)"), "{md}");
 
     // One run is not a comparison; a missing run is named.
-    let o = cli(&format!(
-        "compare {} --out x",
-        runs.join("ppo").to_str().unwrap()
-    ));
-    assert!(!o.status.success());
-    let o = cli(&format!(
-        "compare {} {} --out {}",
-        runs.join("ppo").to_str().unwrap(),
-        runs.join("nope").to_str().unwrap(),
-        out.display()
-    ));
-    assert!(
-        !o.status.success() && text(&o).contains("nope"),
-        "{}",
-        text(&o)
+    cli_fails(
+        &format!("compare {} --out x", runs.join("ppo").to_str().unwrap()),
+        "2 values required",
+    );
+    cli_fails(
+        &format!(
+            "compare {} {} --out {}",
+            runs.join("ppo").to_str().unwrap(),
+            runs.join("nope").to_str().unwrap(),
+            out.display()
+        ),
+        "nope",
     );
 }
 

@@ -7,7 +7,7 @@ mod support;
 
 use std::path::Path;
 use std::process::Command;
-use support::{TempDir, cli, cli_ok, deepfoids, temp_path, text};
+use support::{TempDir, cli_fails, cli_ok, deepfoids, succeeds, temp_path, text};
 
 fn tmp(name: &str) -> TempDir {
     temp_path("count", name)
@@ -32,7 +32,7 @@ fn render(scene: &str, out: &Path, extra: &[&str]) {
     ];
     args.extend_from_slice(extra);
     let o = deepfoids(&args);
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
 }
 
 /// A stride, crop or NMS IoU `train-detector` cannot use is refused by name before
@@ -47,15 +47,13 @@ fn train_detector_refuses_a_stride_it_has_no_network_for() {
             "--crop must be a multiple of 8, at least 32, got 60",
         ),
     ] {
-        let o = cli(&format!(
-            "train-detector --data {} --out {} {flag}",
-            out.join("no-such-render").display(),
-            out.display()
-        ));
-        assert!(
-            !o.status.success() && text(&o).contains(said),
-            "{}",
-            text(&o)
+        cli_fails(
+            &format!(
+                "train-detector --data {} --out {} {flag}",
+                out.join("no-such-render").display(),
+                out.display()
+            ),
+            said,
         );
         assert!(!out.exists(), "{} was made", out.display());
     }
@@ -210,25 +208,20 @@ fn detector_trains_and_counts_end_to_end() {
         eprintln!("note: no ffmpeg on this machine; the video path was not tested");
     }
     // Bad input is named.
-    let o = cli(&format!(
-        "count no/such/video.mp4 --detector {}",
-        det.join("detector.onnx").to_str().unwrap()
-    ));
-    assert!(
-        !o.status.success() && text(&o).contains("no/such/video.mp4"),
-        "{}",
-        text(&o)
+    cli_fails(
+        &format!(
+            "count no/such/video.mp4 --detector {}",
+            det.join("detector.onnx").to_str().unwrap()
+        ),
+        "no/such/video.mp4",
     );
-    let o = cli(&format!(
-        "count {} --detector {}",
-        data.join("images").to_str().unwrap(),
-        data.join("data.yaml").to_str().unwrap()
-    ));
-    assert!(
-        !o.status.success()
-            && text(&o).contains("data.yaml is not an ONNX model (it is a text file"),
-        "{}",
-        text(&o)
+    cli_fails(
+        &format!(
+            "count {} --detector {}",
+            data.join("images").to_str().unwrap(),
+            data.join("data.yaml").to_str().unwrap()
+        ),
+        "data.yaml is not an ONNX model (it is a text file",
     );
     for d in [data, det, out] {
         let _ = std::fs::remove_dir_all(d);

@@ -5,7 +5,7 @@ mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
-use support::{deepfoids, text};
+use support::{deepfoids, fails, succeeds};
 
 fn render(out: &Path, extra: &[&str]) -> Output {
     let mut args = vec![
@@ -43,7 +43,7 @@ fn render_writes_a_yolo_and_coco_dataset() {
     let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/render-check");
     let _ = std::fs::remove_dir_all(&out);
     let o = render(&out, &["--camera", "side"]);
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     for f in ["data.yaml", "annotations.json", "scene.json"] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
@@ -123,7 +123,7 @@ fn interrupted_render_continues_identically() {
     let _ = std::fs::remove_dir_all(&out);
     let args = ["--randomize", "--clip-frames", "2", "--seed", "3"];
     let o = render(&out, &args);
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let label = out.join("labels/frame_000003.txt");
     let before = std::fs::read_to_string(&label).unwrap();
     let frame_json = std::fs::read_to_string(out.join("frames/frame_000003.json")).unwrap();
@@ -133,9 +133,8 @@ fn interrupted_render_continues_identically() {
         .unwrap()
         .modified()
         .unwrap();
-    let o = render(&out, &args);
-    assert!(o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("1 rendered now, 3 kept"), "{}", text(&o));
+    let t = succeeds(&render(&out, &args));
+    assert!(t.contains("1 rendered now, 3 kept"), "{t}");
     assert_eq!(std::fs::read_to_string(&label).unwrap(), before);
     assert_eq!(
         std::fs::read_to_string(out.join("frames/frame_000003.json")).unwrap(),
@@ -179,8 +178,9 @@ fn interrupted_render_continues_identically() {
             + coco_train["annotations"].as_array().unwrap().len(),
         all["annotations"].as_array().unwrap().len()
     );
-    let o = render(&out, &["--randomize", "--clip-frames", "2", "--seed", "4"]);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("other arguments"), "{}", text(&o));
+    fails(
+        &render(&out, &["--randomize", "--clip-frames", "2", "--seed", "4"]),
+        "other arguments",
+    );
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::Path;
-use support::{TempDir, cli, cli_ok, json, temp_path, text};
+use support::{TempDir, cli_fails, cli_ok, json, temp_path, text};
 
 /// A fresh, empty temporary folder.
 fn temp(name: &str) -> TempDir {
@@ -115,13 +115,11 @@ fn eval_folders_replay_only_if_they_reproduce() {
     cols[1] = "0.12345".into();
     lines[10] = cols.join(",");
     std::fs::write(&metrics, lines.join("\n")).unwrap();
-    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
-    assert!(!o.status.success());
-    let t = text(&o);
-    assert!(
-        t.contains("does not reproduce") && t.contains("at t = 0.900 s"),
-        "{t}"
+    let t = cli_fails(
+        &format!("replay --from {} --out {}", s(&run), s(&html)),
+        "does not reproduce",
     );
+    assert!(t.contains("at t = 0.900 s"), "{t}");
     assert!(t.contains(&saved_p) && t.contains("0.12345"), "{t}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -159,17 +157,15 @@ fn simulate_folders_replay_their_csv() {
         .unwrap()
         .replace("\"seed\": 3", "\"seed\": 4");
     std::fs::write(run.join("simulate.json"), wrong).unwrap();
-    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
-    assert!(!o.status.success());
-    assert!(text(&o).contains("another scene or seed"), "{}", text(&o));
+    cli_fails(
+        &format!("replay --from {} --out {}", s(&run), s(&html)),
+        "another scene or seed",
+    );
 
     std::fs::remove_file(run.join("simulate.json")).unwrap();
-    let o = cli(&format!("replay --from {} --out {}", s(&run), s(&html)));
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("simulate.json is missing"),
-        "{}",
-        text(&o)
+    cli_fails(
+        &format!("replay --from {} --out {}", s(&run), s(&html)),
+        "simulate.json is missing",
     );
     cli_ok(&format!(
         "replay --from {} --scene seabream_50 --seed 3 --out {}",
@@ -181,35 +177,15 @@ fn simulate_folders_replay_their_csv() {
 
 #[test]
 fn replay_explains_what_it_needs() {
-    let o = cli("replay");
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("give --scene (and --policy)"),
-        "{}",
-        text(&o)
+    cli_fails("replay", "give --scene (and --policy)");
+    cli_fails(
+        "replay --from runs/no-such-run",
+        "--from runs/no-such-run: no such folder",
     );
-    let o = cli("replay --from runs/no-such-run");
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("--from runs/no-such-run: no such folder"),
-        "{}",
-        text(&o)
-    );
-    let o = cli("replay --from runs --policy boids");
-    assert!(!o.status.success());
-    assert!(text(&o).contains("cannot be used with"), "{}", text(&o));
-    let o = cli("replay --from runs");
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("neither trajectories.csv"),
-        "{}",
-        text(&o)
-    );
-    let o = cli("replay --scene seabream_default --fps 0");
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("--fps must be above 0 and at most 1000 frames/s, got 0"),
-        "{}",
-        text(&o)
+    cli_fails("replay --from runs --policy boids", "cannot be used with");
+    cli_fails("replay --from runs", "neither trajectories.csv");
+    cli_fails(
+        "replay --scene seabream_default --fps 0",
+        "--fps must be above 0 and at most 1000 frames/s, got 0",
     );
 }

@@ -6,7 +6,7 @@ mod support;
 
 use std::path::Path;
 use std::process::Output;
-use support::{TempDir, cli, command, temp_path, text};
+use support::{TempDir, cli, cli_fails, command, fails, succeeds, temp_path};
 
 /// The binary, with the shipped policies looked for in `policies` if given.
 fn deepfoids(args: &[&str], policies: Option<&Path>) -> Output {
@@ -43,8 +43,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         out.to_str().unwrap(),
     ];
     let o = deepfoids(&args, None);
-    assert!(o.status.success(), "{}", text(&o));
-    let t = text(&o);
+    let t = succeeds(&o);
     assert!(t.contains("| seabream-cage |"), "{t}");
     // Its two transfer stages and the pretraining they start from, at the
     // quick budgets × 0.02: 200,000 × 0.02 = 4,000 agent steps each.
@@ -96,8 +95,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
     let mut again: Vec<&str> = args.to_vec();
     again.extend(["--ship", ship.to_str().unwrap()]);
     let o = deepfoids(&again, None);
-    assert!(o.status.success(), "{}", text(&o));
-    let t = text(&o);
+    let t = succeeds(&o);
     assert!(
         t.contains("transfer-seabream_cube5: finished before, reusing it"),
         "{t}"
@@ -124,20 +122,16 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
     let mut some = again.clone();
     some.extend(["--ship-only", "coho,coho/density_dense"]);
     let o = deepfoids(&some, None);
-    assert!(o.status.success(), "{}", text(&o));
-    let t = text(&o);
+    let t = succeeds(&o);
     assert!(t.contains("shipped coho to"), "{t}");
     assert!(t.contains("shipped coho/density_dense to"), "{t}");
     assert!(!t.contains("shipped coho/density_sparse"), "{t}");
     assert!(!t.contains("shipped seabream"), "{t}");
     let mut unknown = again.clone();
     unknown.extend(["--ship-only", "coho/tuna"]);
-    let o = deepfoids(&unknown, None);
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("--ship-only: no shipped policy `coho/tuna`; the shipped ones are coho, yellowtail, seabream, coho/density_sparse, coho/density_dense"),
-        "{}",
-        text(&o)
+    fails(
+        &deepfoids(&unknown, None),
+        "--ship-only: no shipped policy `coho/tuna`; the shipped ones are coho, yellowtail, seabream, coho/density_sparse, coho/density_dense",
     );
     for scene in ["density_sparse", "density_dense"] {
         let dir = ship.join("coho").join(scene);
@@ -167,7 +161,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         ],
         Some(&ship),
     );
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     assert!(ev.join("summary.json").is_file());
     let o = deepfoids(
         &[
@@ -191,7 +185,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         ],
         Some(&ship),
     );
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let cfg = std::fs::read_to_string(out.join("from-shipped/config.toml")).unwrap();
     assert!(
         cfg.contains(&ship.join("seabream").display().to_string()),
@@ -213,7 +207,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         ],
         Some(&ship),
     );
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     assert!(sim.join("trajectories.csv").is_file());
     let cmp = out.join("cmp");
     let from = out.join("from-shipped");
@@ -233,7 +227,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         ],
         Some(&ship),
     );
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     assert!(cmp.join("compare.md").is_file());
     // A density-cage policy by name; a name that leaves the folder is refused.
     let o = deepfoids(
@@ -252,7 +246,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         ],
         Some(&ship),
     );
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let summary = std::fs::read_to_string(out.join("eval-sparse/summary.json")).unwrap();
     assert!(summary.contains("density_sparse"), "{summary}");
     for bad in [
@@ -264,12 +258,7 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
             &["eval", "--scene", "density_sparse", "--policy", bad],
             Some(&ship),
         );
-        assert!(!o.status.success(), "{bad}");
-        assert!(
-            text(&o).contains("no shipped policy"),
-            "{bad}: {}",
-            text(&o)
-        );
+        fails(&o, "no shipped policy");
     }
     // An unknown species names what there is.
     let o = deepfoids(
@@ -282,11 +271,9 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         ],
         Some(&ship),
     );
-    assert!(!o.status.success());
-    let t = text(&o);
+    let t = fails(&o, "no shipped policy `tuna`");
     assert!(
-        t.contains("no shipped policy `tuna`")
-            && t.contains("pretrained:coho, pretrained:coho/density_dense, pretrained:coho/density_sparse, pretrained:seabream, pretrained:yellowtail"),
+        t.contains("pretrained:coho, pretrained:coho/density_dense, pretrained:coho/density_sparse, pretrained:seabream, pretrained:yellowtail"),
         "{t}"
     );
     let _ = std::fs::remove_dir_all(&out);
@@ -305,9 +292,7 @@ fn an_unknown_claim_is_refused_with_the_list() {
         ],
         None,
     );
-    assert!(!o.status.success());
-    let t = text(&o);
-    assert!(t.contains("unknown claim `fly`"), "{t}");
+    let t = fails(&o, "unknown claim `fly`");
     assert!(t.contains("learn, transfer, circle, seabream-cage, seabream-50, layers, species, density, chase, ppo-sac, boids"), "{t}");
     assert!(!out.exists(), "nothing written for a refused command");
 }
@@ -322,7 +307,7 @@ fn the_plan_and_single_stages_for_a_cluster_driver() {
     let o = out.to_str().unwrap();
     let base = format!("reproduce --profile quick --only seabream-cage --out {o}");
     let p = cli(&format!("{base} --plan --seeds 7"));
-    assert!(p.status.success(), "{}", text(&p));
+    succeeds(&p);
     let plan = String::from_utf8_lossy(&p.stdout).to_string();
     let lines: Vec<&str> = plan.lines().collect();
     assert_eq!(lines.len(), 3, "{plan}");
@@ -330,20 +315,13 @@ fn the_plan_and_single_stages_for_a_cluster_driver() {
         lines[2],
         r#"{"algo":"ppo","init_from":["pretrain-seabream"],"phase":"transfer","scene":"seabream_cube5","seed":7,"stage":"transfer-seabream_cube5"}"#
     );
-    let e = cli(&format!("{base} --stage transfer-density_dense"));
-    assert!(!e.status.success());
-    assert!(
-        text(&e).contains(
-            "--stage transfer-density_dense is not a stage of these claims; they train: pretrain-seabream, transfer-seabream_default, transfer-seabream_cube5"
-        ),
-        "{}",
-        text(&e)
+    cli_fails(
+        &format!("{base} --stage transfer-density_dense"),
+        "--stage transfer-density_dense is not a stage of these claims; they train: pretrain-seabream, transfer-seabream_default, transfer-seabream_cube5",
     );
-    let e = cli(&format!("{base} --stage transfer-seabream_cube5"));
-    assert!(
-        !e.status.success() && text(&e).contains("which has no final policy"),
-        "{}",
-        text(&e)
+    cli_fails(
+        &format!("{base} --stage transfer-seabream_cube5"),
+        "which has no final policy",
     );
     assert!(!out.join("s0").join("transfer-seabream_cube5").exists());
 }

@@ -10,7 +10,7 @@ use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-use support::{TempDir, cli, cli_ok, command, command_line, deepfoids, temp_path, text};
+use support::{TempDir, cli, cli_ok, command, command_line, deepfoids, succeeds, temp_path, text};
 
 fn temp(name: &str) -> TempDir {
     temp_path("robust", name)
@@ -93,7 +93,7 @@ fn a_scene_too_large_for_the_memory_is_refused_before_it_is_allocated() {
         .env_remove("DEEPFOIDS_MEMORY_AVAILABLE")
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     // A replay page is checked too: a day of frames of 10 fish in 10 MiB.
     let o = command_line(&format!(
         "replay --scene seabream_default --seconds 86400 --out {}",
@@ -270,7 +270,7 @@ fn one_process_at_a_time_writes_a_render_folder() {
 fn a_finished_command_leaves_no_lock() {
     let out = temp("released");
     let o = on_seabream(None, "simulate", "0.2", &out).output().unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let parent = out.parent().unwrap();
     let name = format!(".{}.lock", out.file_name().unwrap().to_string_lossy());
     assert!(!parent.join(name).exists());
@@ -415,7 +415,7 @@ fn one_process_at_a_time_trains_a_run() {
     let force = train_cmd(&configs, &runs, "r", "300", &["--force"])
         .output()
         .unwrap();
-    assert!(force.status.success(), "{}", text(&force));
+    succeeds(&force);
     assert!(!dir.join("marker").exists(), "--force replaced the folder");
     assert!(dir.join("final/state.json").is_file());
     assert!(!runs.join(".r.lock").exists(), "released at exit");
@@ -423,7 +423,7 @@ fn one_process_at_a_time_trains_a_run() {
     let resume = train_cmd(&configs, &runs, "r", "400", &["--resume"])
         .output()
         .unwrap();
-    assert!(resume.status.success(), "{}", text(&resume));
+    succeeds(&resume);
     assert!(
         text(&resume).contains("resumed from step 300 (checkpoint ")
             && text(&resume).contains("step-0000000300)"),
@@ -461,13 +461,13 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
     let o = train_cmd(&configs, &runs, "src", "300", &[])
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let o = transfer(&runs.join("src"), "sac");
     assert_refused(&o, "ppo");
     assert!(!runs.join("t").exists(), "no stub folder");
     // The same --run-id then trains.
     let o = transfer(&runs.join("src"), "ppo");
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let _ = std::fs::remove_dir_all(&runs);
     let _ = std::fs::remove_dir_all(&configs);
 }
@@ -833,7 +833,7 @@ fn checkpoints_are_never_used_silently() {
     let o = train_cmd(&configs, &runs, "src", "300", &[])
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let run = runs.join("src");
     // Checkpoints every 100 agent steps (10 fish): the newest two are kept.
     let steps: Vec<String> = names_in(&run.join("checkpoints"));
@@ -855,7 +855,7 @@ fn checkpoints_are_never_used_silently() {
     assert_refused(&o, "--latest");
     assert!(!out.exists());
     let (o, out) = eval(&["--latest"]);
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
     assert!(summary.contains("\"checkpoint\": 300"), "{summary}");
     // `export` takes the same two ways, and refuses without one.
@@ -892,7 +892,7 @@ fn checkpoints_are_never_used_silently() {
     );
     std::fs::write(&model, &weights).unwrap();
     let o = transfer();
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
 
     // A truncated newest checkpoint: resume from the one before, saying so.
     let newest = run.join("checkpoints").join(steps.last().unwrap());
@@ -902,7 +902,7 @@ fn checkpoints_are_never_used_silently() {
     let o = train_cmd(&configs, &runs, "src", "400", &["--resume"])
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     assert!(
         text(&o).contains("note: resuming from the older checkpoint")
             && text(&o).contains("resumed from step 200"),

@@ -35,8 +35,32 @@ pub fn cli(line: &str) -> Output {
 #[track_caller]
 pub fn cli_ok(line: &str) -> Output {
     let o = cli(line);
-    assert!(o.status.success(), "{}", text(&o));
+    succeeds(&o);
     o
+}
+
+/// A finished run of the binary that must have succeeded; its output.
+#[track_caller]
+pub fn succeeds(o: &Output) -> String {
+    let t = text(o);
+    assert!(o.status.success(), "{t}");
+    t
+}
+
+/// [`cli`], which must fail with `said` in its output; the output.
+#[track_caller]
+pub fn cli_fails(line: &str, said: &str) -> String {
+    fails(&cli(line), said)
+}
+
+/// A finished run of the binary that must have failed with `said` in its
+/// output; the output.
+#[track_caller]
+pub fn fails(o: &Output, said: &str) -> String {
+    let t = text(o);
+    assert!(!o.status.success(), "succeeded where it must fail: {t}");
+    assert!(t.contains(said), "failed without saying `{said}`: {t}");
+    t
 }
 
 /// Standard output, then standard error.
