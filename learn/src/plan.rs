@@ -160,9 +160,11 @@ pub const TRAIN_BYTES_PER_PARAM: u64 = 48;
 /// layers: the quantised stack, the encoder's activations and gradients on
 /// the non-zero cells (the update reads compact grids, never an f32 stack).
 /// Measured 6–7 kB per sample and body (PPO and SAC, 10 fish, batches of 128
-/// to 1,024; `experiments/tests/train_config_fuzz.rs`); 24 KiB leaves room for
-/// denser grids.
-pub const UPDATE_BYTES_PER_SAMPLE: u64 = 24 * 1024;
+/// to 1,024; `experiments/tests/train_config_fuzz.rs`), plus the non-zero
+/// inputs the forward pass keeps for the backward pass (8 bytes each, at
+/// most a quarter of the 12,240 inputs when conv 1 runs sparse: ≤ 24.5 kB);
+/// 40 KiB leaves room for denser grids.
+pub const UPDATE_BYTES_PER_SAMPLE: u64 = 40 * 1024;
 
 /// Bytes per agent while acting: its outputs, values and the fused
 /// forward's share of scratch, rounded up.

@@ -60,6 +60,36 @@ pub fn col2im1(dcols: &[f32], dxp: &mut [f32]) {
 }
 
 /// Conv-2 patches of body `b` for `s` samples from `a1` (`[s·32, 16·K]`):
+/// Conv 1's dense patches of a chunk of samples, made on first use: a task
+/// whose chunks all take the sparse path never allocates (nor zeroes) their
+/// 2.4 MB, which had been 3 % of a PPO update.
+#[derive(Default)]
+struct Patches {
+    xp: Vec<f32>,
+    cols: Vec<f32>,
+}
+
+impl Patches {
+    /// Both buffers at full size: `xp` `[18, 20, 36]`, `cols` `[SUB·32, 1152]`.
+    fn buffers(&mut self) -> (&mut [f32], &mut [f32]) {
+        if self.cols.is_empty() {
+            self.xp = vec![0.0; PADDED_LEN];
+            self.cols = vec![0.0; SUB * P1 * PATCH1];
+        }
+        (&mut self.xp, &mut self.cols)
+    }
+
+    /// The patches ([`im2col1`]) of samples `first..first + s`: `[s·32, 1152]`.
+    fn of(&mut self, grids: GridsRef<'_>, first: usize, s: usize) -> &[f32] {
+        let (xp, cols) = self.buffers();
+        for t in 0..s {
+            grids.expand(first + t, xp);
+            im2col1(xp, &mut cols[t * P1 * PATCH1..(t + 1) * P1 * PATCH1]);
+        }
+        &cols[..s * P1 * PATCH1]
+    }
+}
+
 /// `cols` `[s·3, 256]`, row `t·3 + j`, column `c·16 + r·4 + q` = `a1[t·32 + r·8 + 2j + q][16b + c]`.
 fn im2col2(a1: &[f32], k: usize, b: usize, s: usize, cols: &mut [f32]) {
     let width = C1 * k;
@@ -183,6 +213,24 @@ pub struct EncoderSaved {
     pub e: Vec<f32>,
     /// The outputs `[n, K·hidden]` (their signs are the last LeakyReLU's).
     pub h: Vec<f32>,
+    /// Per chunk of [`SUB`] samples, its non-zero inputs if conv 1 took the
+    /// sparse path: the backward pass uses them again instead of finding them
+    /// a second time (that search had been half of its 7 % of an update).
+    pub nonzeros: Vec<ChunkNonzeros>,
+}
+
+/// The non-zero inputs of a chunk's samples, one list a sample, if conv 1 ran
+/// on them; `None` if it ran dense.
+pub type ChunkNonzeros = Option<Vec<Vec<Nonzero>>>;
+
+/// One task's part of an [`EncoderSaved`].
+#[derive(Clone, Copy)]
+pub struct SavedPart<'a> {
+    pub a1: &'a [f32],
+    pub e: &'a [f32],
+    pub h: &'a [f32],
+    /// The task's chunks.
+    pub nonzeros: &'a [ChunkNonzeros],
 }
 
 impl EncoderPack {
@@ -254,7 +302,10 @@ impl EncoderPack {
     }
 
     /// Forward for the `n` samples of a task: `out` `[n, K·hidden]`; `a1` and
-    /// `e` (the task's parts of [`EncoderSaved`]) are written too.
+    /// `e` (the task's parts of [`EncoderSaved`]) are written too, and with
+    /// `kept` (its chunks' slots) the non-zero inputs of the chunks that conv 1
+    /// ran sparse on.
+    #[allow(clippy::too_many_arguments)]
     pub fn forward_task(
         &self,
         grids: GridsRef<'_>,
@@ -263,11 +314,11 @@ impl EncoderPack {
         out: &mut [f32],
         a1: &mut [f32],
         e: &mut [f32],
+        mut kept: Option<&mut [ChunkNonzeros]>,
     ) {
         let (wa1, we, wh) = self.widths();
         let (k, hid) = (self.k, self.hidden);
-        let mut xp = vec![0.0f32; PADDED_LEN];
-        let mut cols = vec![0.0f32; SUB * P1 * PATCH1];
+        let mut patches = Patches::default();
         let mut cols2 = vec![0.0f32; SUB * P2 * PATCH2];
         let mut z2 = vec![0.0f32; SUB * P2 * C2];
         let mut nzs: Vec<Vec<Nonzero>> = vec![Vec::new(); SUB];
@@ -285,17 +336,17 @@ impl EncoderPack {
                         &mut a1c[t * wa1..(t + 1) * wa1],
                     );
                 }
-            } else {
-                for t in 0..s {
-                    grids.expand(first + s0 + t, &mut xp);
-                    im2col1(&xp, &mut cols[t * P1 * PATCH1..(t + 1) * P1 * PATCH1]);
+                if let Some(kept) = kept.as_deref_mut() {
+                    // Copies the size of each list (the buffers stay for reuse).
+                    kept[s0 / SUB] = Some(nzs[..s].to_vec());
                 }
+            } else {
                 // Conv 1 for all bodies: [s·32, 1152] × W1ᵀ → [s·32, 16K].
                 sgemm(
                     s * P1,
                     C1 * k,
                     PATCH1,
-                    &cols,
+                    patches.of(grids, first + s0, s),
                     [PATCH1, 1],
                     &self.w1,
                     [1, PATCH1],
@@ -365,16 +416,15 @@ impl EncoderPack {
         grids: GridsRef<'_>,
         first: usize,
         n: usize,
-        saved: (&[f32], &[f32], &[f32]),
+        saved: SavedPart<'_>,
         dh: &[f32],
         grads: &mut EncoderGrads,
         mut dx: Option<&mut [f32]>,
     ) {
-        let (a1, e, h) = saved;
+        let SavedPart { a1, e, h, .. } = saved;
         let (wa1, we, wh) = self.widths();
         let (k, hid) = (self.k, self.hidden);
-        let mut xp = vec![0.0f32; PADDED_LEN];
-        let mut cols = vec![0.0f32; SUB * P1 * PATCH1];
+        let mut patches = Patches::default();
         let mut cols2 = vec![0.0f32; SUB * P2 * PATCH2];
         let mut dz = vec![0.0f32; SUB * hid];
         let mut de = vec![0.0f32; SUB * CONV_FLAT];
@@ -465,17 +515,20 @@ impl EncoderPack {
             // Conv 1, all bodies: dz1 = da1·leaky'(a1).
             let dz1 = &mut da1[..s * wa1];
             leaky_backward(dz1, a1c, self.slope);
-            if self.sparse_chunk(grids, first + s0, s, &mut nzs) {
+            // The forward pass's lists where it kept them, else found again.
+            let lists = match saved.nonzeros.get(s0 / SUB) {
+                Some(kept) => kept.as_deref(),
+                None => self
+                    .sparse_chunk(grids, first + s0, s, &mut nzs)
+                    .then_some(&nzs[..s]),
+            };
+            if let Some(lists) = lists {
                 // dW1ᵀ [1152, 16K] += Σ over non-zeros (transposed back below).
                 let dwt = dw1t.get_or_insert_with(|| vec![0.0; PATCH1 * C1 * k]);
-                for (t, nz) in nzs.iter().enumerate().take(s) {
+                for (t, nz) in lists.iter().enumerate() {
                     sparse::backward(nz, &dz1[t * wa1..(t + 1) * wa1], C1 * k, &self.spans, dwt);
                 }
             } else {
-                for t in 0..s {
-                    grids.expand(first + s0 + t, &mut xp);
-                    im2col1(&xp, &mut cols[t * P1 * PATCH1..(t + 1) * P1 * PATCH1]);
-                }
                 // dW1 [16K, 1152] += dz1ᵀ [16K, s·32] · cols [s·32, 1152]
                 sgemm(
                     C1 * k,
@@ -483,7 +536,7 @@ impl EncoderPack {
                     s * P1,
                     dz1,
                     [1, C1 * k],
-                    &cols,
+                    patches.of(grids, first + s0, s),
                     [PATCH1, 1],
                     &mut grads.w1,
                     [PATCH1, 1],
@@ -492,7 +545,8 @@ impl EncoderPack {
             }
             sum_rows(dz1, s * P1, C1 * k, &mut grads.b1);
             if let Some(dx) = dx.as_deref_mut() {
-                self.grid_gradient(dz1, s0, s, &mut cols, &mut xp, dx);
+                let (xp, cols) = patches.buffers();
+                self.grid_gradient(dz1, s0, s, cols, xp, dx);
             }
         }
         if let Some(dwt) = dw1t {
@@ -550,15 +604,17 @@ impl EncoderPack {
             a1: vec![0.0; n * wa1],
             e: vec![0.0; n * we],
             h: vec![0.0; n * wh],
+            nonzeros: vec![None; n.div_ceil(SUB)],
         };
         saved
             .h
             .par_chunks_mut(TASK * wh)
             .zip(saved.a1.par_chunks_mut(TASK * wa1))
             .zip(saved.e.par_chunks_mut(TASK * we))
+            .zip(saved.nonzeros.par_chunks_mut(TASK / SUB))
             .enumerate()
-            .for_each(|(t, ((h, a1), e))| {
-                self.forward_task(grids, t * TASK, h.len() / wh, h, a1, e)
+            .for_each(|(t, (((h, a1), e), kept))| {
+                self.forward_task(grids, t * TASK, h.len() / wh, h, a1, e, Some(kept))
             });
         saved
     }
@@ -573,7 +629,7 @@ impl EncoderPack {
             .for_each(|(t, h)| {
                 let n = h.len() / wh;
                 let (mut a1, mut e) = (vec![0.0; n * wa1], vec![0.0; n * we]);
-                self.forward_task(grids, t * TASK, n, h, &mut a1, &mut e)
+                self.forward_task(grids, t * TASK, n, h, &mut a1, &mut e, None)
             });
     }
 
@@ -598,11 +654,12 @@ impl EncoderPack {
                 grids,
                 first,
                 m,
-                (
-                    part(&saved.a1, wa1, first, m),
-                    part(&saved.e, we, first, m),
-                    part(&saved.h, wh, first, m),
-                ),
+                SavedPart {
+                    a1: part(&saved.a1, wa1, first, m),
+                    e: part(&saved.e, we, first, m),
+                    h: part(&saved.h, wh, first, m),
+                    nonzeros: &saved.nonzeros[first / SUB..(first + m).div_ceil(SUB)],
+                },
                 part(dh, wh, first, m),
                 &mut g,
                 dx,
