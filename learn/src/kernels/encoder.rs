@@ -59,7 +59,6 @@ pub fn col2im1(dcols: &[f32], dxp: &mut [f32]) {
     }
 }
 
-/// Conv-2 patches of body `b` for `s` samples from `a1` (`[s·32, 16·K]`):
 /// Conv 1's dense patches of a chunk of samples, made on first use: a task
 /// whose chunks all take the sparse path never allocates (nor zeroes) their
 /// 2.4 MB, which had been 3 % of a PPO update.
@@ -90,6 +89,7 @@ impl Patches {
     }
 }
 
+/// Conv-2 patches of body `b` for `s` samples from `a1` (`[s·32, 16·K]`):
 /// `cols` `[s·3, 256]`, row `t·3 + j`, column `c·16 + r·4 + q` = `a1[t·32 + r·8 + 2j + q][16b + c]`.
 fn im2col2(a1: &[f32], k: usize, b: usize, s: usize, cols: &mut [f32]) {
     let width = C1 * k;
@@ -214,8 +214,9 @@ pub struct EncoderSaved {
     /// The outputs `[n, K·hidden]` (their signs are the last LeakyReLU's).
     pub h: Vec<f32>,
     /// Per chunk of [`SUB`] samples, its non-zero inputs if conv 1 took the
-    /// sparse path: the backward pass uses them again instead of finding them
-    /// a second time (that search had been half of its 7 % of an update).
+    /// sparse path (`None`: dense): the backward pass follows the forward
+    /// pass's choice with its lists instead of finding them a second time
+    /// (that search had been half of its 7 % of an update).
     pub nonzeros: Vec<ChunkNonzeros>,
 }
 
@@ -430,7 +431,6 @@ impl EncoderPack {
         let mut de = vec![0.0f32; SUB * CONV_FLAT];
         let mut dz2 = vec![0.0f32; SUB * P2 * C2];
         let mut da1 = vec![0.0f32; SUB * wa1];
-        let mut nzs: Vec<Vec<Nonzero>> = vec![Vec::new(); SUB];
         let mut dw1t: Option<Vec<f32>> = None;
         for s0 in (0..n).step_by(SUB) {
             let s = SUB.min(n - s0);
@@ -515,14 +515,8 @@ impl EncoderPack {
             // Conv 1, all bodies: dz1 = da1·leaky'(a1).
             let dz1 = &mut da1[..s * wa1];
             leaky_backward(dz1, a1c, self.slope);
-            // The forward pass's lists where it kept them, else found again.
-            let lists = match saved.nonzeros.get(s0 / SUB) {
-                Some(kept) => kept.as_deref(),
-                None => self
-                    .sparse_chunk(grids, first + s0, s, &mut nzs)
-                    .then_some(&nzs[..s]),
-            };
-            if let Some(lists) = lists {
+            // The forward pass's lists: it chose sparse or dense for this chunk.
+            if let Some(lists) = saved.nonzeros[s0 / SUB].as_deref() {
                 // dW1ᵀ [1152, 16K] += Σ over non-zeros (transposed back below).
                 let dwt = dw1t.get_or_insert_with(|| vec![0.0; PATCH1 * C1 * k]);
                 for (t, nz) in lists.iter().enumerate() {
