@@ -10,7 +10,9 @@ use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-use support::{TempDir, cli, cli_ok, command, command_line, deepfoids, succeeds, temp_path, text};
+use support::{
+    TempDir, cli, cli_ok, command, command_line, deepfoids, fails, succeeds, temp_path, text,
+};
 
 fn temp(name: &str) -> TempDir {
     temp_path("robust", name)
@@ -42,10 +44,9 @@ fn on_seabream(configs: Option<&Path>, cmd: &str, seconds: &str, out: &Path) -> 
 }
 
 /// A failing run whose one-line error contains `want`.
+#[track_caller]
 fn assert_refused(o: &Output, want: &str) {
-    let t = text(o);
-    assert!(!o.status.success(), "should fail: {t}");
-    assert!(t.contains(want), "expected `{want}` in:\n{t}");
+    let t = fails(o, want);
     assert!(
         !t.contains("panicked") && !t.contains("memory allocation"),
         "{t}"
