@@ -235,3 +235,36 @@ fn a_bad_spawn_pitch_names_its_own_field() {
         "{e}"
     );
 }
+
+/// Every reward profile in the repository's `configs/rewards/` loads in both
+/// phases within the limits, and docs/reward-profiles.md lists it: a profile
+/// committed for an experiment is usable from the CLI and documented.
+#[test]
+fn every_shipped_reward_profile_loads_and_is_documented() {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dirs = ConfigDirs::new(repo.join("configs"));
+    let profiles = dirs.reward_profiles();
+    for needed in [
+        "thesis",
+        "legacy",
+        deepfoids_env::config::DEFAULT_REWARD_PROFILE,
+    ] {
+        assert!(
+            profiles.iter().any(|p| p == needed),
+            "{needed} missing: {profiles:?}"
+        );
+    }
+    let doc = std::fs::read_to_string(repo.join("docs/reward-profiles.md")).unwrap();
+    for p in &profiles {
+        let dirs = dirs.clone().with_reward_profile(p.as_str());
+        for phase in [Phase::Pretrain, Phase::Transfer] {
+            if let Err(e) = dirs.rewards(phase) {
+                panic!("profile {p}, {phase:?}: {e}");
+            }
+        }
+        assert!(
+            doc.contains(&format!("| `{p}` |")),
+            "docs/reward-profiles.md has no row for `{p}`"
+        );
+    }
+}
