@@ -16,7 +16,7 @@
 //! in the fish's local frame, `u = (0, 0, 1) − R⁻¹·f_front` (zero without a
 //! neighbour in front).
 
-use crate::config::{Extensions, NeighbourForm};
+use crate::config::{Extensions, NeighbourForm, PersonalSpaceOf};
 use crate::kinematics::{basis, fast_acos_deg};
 use crate::traits::Traits;
 use crate::world::{Chase, World};
@@ -187,7 +187,8 @@ impl Sensing<'_> {
         let mut spheres = SphereBatch::new();
         let cap = self.neighbour_cap;
         let ext = &self.extensions;
-        let personal2 = (ext.personal_space_bl * w.bl[i]).powi(2);
+        let personal_bl = ext.personal_space_bl;
+        let personal2 = (personal_bl * w.bl[i]).powi(2);
         let mut counted = 0u32;
         let mut nearest = Nearest::<MAX_NEIGHBOUR_CAP>::new();
         let (species, bl) = (w.species[i], w.bl[i]);
@@ -199,7 +200,11 @@ impl Sensing<'_> {
             }
             let n = &self.neighbours[slot];
             let d = d2.sqrt();
-            if d2 < personal2 {
+            let inside = match ext.personal_space_of {
+                PersonalSpaceOf::Own => d2 < personal2,
+                PersonalSpaceOf::Pair => d2 < (0.5 * personal_bl * (bl + n.bl)).powi(2),
+            };
+            if inside {
                 seen.crowding += 1;
             } else if !ext.conspecific_only || n.species == species {
                 let mut align = (90.0 - fast_acos_deg(f.dot(n.heading))) / 90.0;

@@ -124,6 +124,20 @@ pub enum NeighbourForm {
     Sqrt,
 }
 
+/// Whose body length SPEC §6.2's personal space is measured in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum PersonalSpaceOf {
+    /// The fish's own (default): a large fish keeps a large fish's distance from
+    /// a small one that does not keep it back.
+    #[default]
+    Own,
+    /// The mean of the two fish's: symmetric, so both of a pair agree whether
+    /// they are too close (as a contact is for both). The same as `own` where
+    /// every fish has one size; it differs in mixed sizes (`coho_mixed`).
+    Pair,
+}
+
 /// The extensions of SPEC §6.2 the thesis cites but never formalises; all off by default.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -134,6 +148,9 @@ pub struct Extensions {
     /// Personal space (Føre et al. 2009: ≥ 0.66 BL) in BL: a neighbour nearer
     /// than this does not count for `r_ND`. 0 (default): off.
     pub personal_space_bl: f32,
+    /// Whose body length `personal_space_bl` counts in: `own` (default) or the
+    /// `pair`'s mean.
+    pub personal_space_of: PersonalSpaceOf,
     /// Penalty per neighbour inside the personal space, per decision, added to
     /// `r_ND` (> 0 means a cost). 0 (default): none.
     pub personal_space_penalty: f32,
@@ -161,6 +178,7 @@ impl Default for Extensions {
         Self {
             neighbour_form: NeighbourForm::Sum,
             personal_space_bl: 0.0,
+            personal_space_of: PersonalSpaceOf::Own,
             personal_space_penalty: 0.0,
             neighbour_budget: 0,
             conspecific_only: false,
