@@ -217,32 +217,35 @@ fn personal_space() {
     assert!(close(terms(&env, 0)[ND], 0.5, 2e-3), "{:?}", terms(&env, 0));
 }
 
-/// A pair 0.2 m apart, parallel, fish 0 of 0.34 m and fish 1 of 0.17 m, a
-/// personal space of 0.66 BL costing 1. In each fish's own length (0.2244 m and
-/// 0.1122 m) only fish 0 is crowded: r_ND = −1 for it, 1.5 for fish 1. In the
-/// pair's mean length, 0.66 · 0.255 = 0.1683 m < 0.2 m: neither is, 1.5 each.
+/// r_ND of a parallel pair `dx` m apart in mid-water, fish 0 of 0.34 m and
+/// fish 1 of 0.17 m, after one decision in scene `s`.
+fn unequal_pair_nd(s: deepfoids_env::Scene, dx: f32) -> [f32; 2] {
+    let mut env = calm_env(s);
+    let c = Vec3::new(-0.5, -1.5, -0.3);
+    place(&mut env, 0, c, Vec3::Z, 0.5);
+    place(&mut env, 1, c + Vec3::new(dx, 0.0, 0.0), Vec3::Z, 0.5);
+    env.world_mut().bl[1] = 0.17;
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    [terms(&env, 0)[ND], terms(&env, 1)[ND]]
+}
+
+/// The pair 0.2 m apart with a personal space of 0.66 BL costing 1. In each
+/// fish's own length (0.2244 m and 0.1122 m) only fish 0 is crowded: r_ND = −1
+/// for it, 1.5 for fish 1. In the pair's mean length, 0.66 · 0.255 = 0.1683 m
+/// < 0.2 m: neither is, 1.5 each.
 #[test]
 fn personal_space_of_the_pair() {
     use deepfoids_env::config::PersonalSpaceOf;
-    let run = |of: PersonalSpaceOf| {
-        let mut s = scene("seabream_default", 2);
-        s.rewards.extensions.personal_space_bl = 0.66;
-        s.rewards.extensions.personal_space_penalty = 1.0;
-        s.rewards.extensions.personal_space_of = of;
-        let mut env = calm_env(s);
-        let c = Vec3::new(-0.5, -1.5, -0.3);
-        place(&mut env, 0, c, Vec3::Z, 0.5);
-        place(&mut env, 1, c + Vec3::new(0.2, 0.0, 0.0), Vec3::Z, 0.5);
-        env.world_mut().bl[1] = 0.17;
-        env.observe_now();
-        env.step(&zeros(&env)).unwrap();
-        [terms(&env, 0)[ND], terms(&env, 1)[ND]]
-    };
     for (of, want) in [
         (PersonalSpaceOf::Own, [-1.0, 1.5]),
         (PersonalSpaceOf::Pair, [1.5, 1.5]),
     ] {
-        let got = run(of);
+        let mut s = scene("seabream_default", 2);
+        s.rewards.extensions.personal_space_bl = 0.66;
+        s.rewards.extensions.personal_space_penalty = 1.0;
+        s.rewards.extensions.personal_space_of = of;
+        let got = unequal_pair_nd(s, 0.2);
         assert!(
             close(got[0], want[0], 2e-3) && close(got[1], want[1], 2e-3),
             "{of:?}: {got:?}, want {want:?}"
@@ -296,17 +299,10 @@ fn neighbour_budget_scales_the_sum() {
 fn size_weighted_alignment() {
     let mut s = scene("seabream_default", 2);
     s.rewards.extensions.size_weighted = true;
-    let mut env = calm_env(s);
-    let c = Vec3::new(-0.5, -1.5, -0.3);
-    place(&mut env, 0, c, Vec3::Z, 0.5);
-    place(&mut env, 1, c + Vec3::new(0.5, 0.0, 0.0), Vec3::Z, 0.5);
-    env.world_mut().bl[1] = 0.17;
-    env.observe_now();
-    env.step(&zeros(&env)).unwrap();
+    let nd = unequal_pair_nd(s, 0.5);
     assert!(
-        close(terms(&env, 0)[ND], 0.75, 2e-3),
-        "{:?}",
-        terms(&env, 0)
+        close(nd[0], 0.75, 2e-3) && close(nd[1], 0.75, 2e-3),
+        "{nd:?}"
     );
 }
 
