@@ -90,6 +90,15 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
     let stages = std::fs::read_to_string(report.join("stages.csv")).unwrap();
     assert_eq!(stages.lines().count(), 1 + 3, "{stages}");
 
+    // The same folder under another reward profile: its stages learnt other
+    // rewards, so none is reused (or resumed) for it.
+    let mut other: Vec<&str> = args.to_vec();
+    other.extend(["--reward-profile", "thesis"]);
+    fails(
+        &deepfoids(&other, None),
+        "pretrain-seabream trained with reward profile mean_then_budget_space20, not thesis: reuse it with --reward-profile mean_then_budget_space20, or use another run folder",
+    );
+
     // Again, shipping: nothing is trained or evaluated twice, the three
     // species' default stages are added for the policies.
     let mut again: Vec<&str> = args.to_vec();

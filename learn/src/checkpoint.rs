@@ -61,6 +61,11 @@ pub struct RunState {
     pub hidden: usize,
     pub layers: usize,
     pub behaviours: Vec<BehaviourState>,
+    /// The reward profile the run trained with (`rewards/<profile>/`).
+    /// Runs before it was recorded here name it in their `config.toml`
+    /// ([`RunState::reward_profile_of`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reward_profile: Option<String>,
 }
 
 fn layout_1() -> u32 {
@@ -98,6 +103,33 @@ impl RunState {
             algorithm: self.algo.as_str().into(),
             training_step,
             run: self.run_id.clone(),
+        }
+    }
+
+    /// The reward profile run folder `run` (whose state this is) trained
+    /// with: the state's own record, else its `config.toml`'s
+    /// `[scene] reward_profile`; `None` when neither says.
+    pub fn reward_profile_of(&self, run: &Path) -> Option<String> {
+        self.reward_profile.clone().or_else(|| {
+            let text = std::fs::read_to_string(run.join("config.toml")).ok()?;
+            let config: toml::Table = text.parse().ok()?;
+            let profile = config.get("scene")?.get("reward_profile")?.as_str()?;
+            Some(profile.to_string())
+        })
+    }
+
+    /// Refuse to continue or reuse run `run` (whose state this is) under
+    /// reward profile `want` when it trained with another: its policy learnt
+    /// other rewards. `what` is the verb of the refusal ("resume", "reuse").
+    pub fn check_reward_profile(&self, run: &Path, want: &str, what: &'static str) -> Result<()> {
+        match self.reward_profile_of(run) {
+            Some(had) if had != want => Err(LearnError::RewardProfile {
+                run: run.to_path_buf(),
+                had,
+                want: want.to_string(),
+                what,
+            }),
+            _ => Ok(()),
         }
     }
 
@@ -414,6 +446,7 @@ mod tests {
                     updates: 0,
                 })
                 .collect(),
+            reward_profile: None,
         }
     }
 

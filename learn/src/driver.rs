@@ -547,6 +547,7 @@ fn resume_from<T: Trainer>(
         });
     }
     st.check_architecture(dir, hidden, layers, &trainer.config_name())?;
+    st.check_reward_profile(&args.run_dir, &args.scene.reward_profile, "resume")?;
     let env = new_env(args, Some(&st));
     let behaviours = learners(trainer, args, &env, Some((dir, &st)), &[])?;
     Ok((st, env, behaviours))
@@ -617,8 +618,11 @@ fn setup<T: Trainer>(
         hidden,
         layers,
         behaviours: vec![],
+        reward_profile: Some(args.scene.reward_profile.clone()),
     });
     state.resets = resets;
+    // A run from before the profile was recorded passed the check by its config.toml.
+    state.reward_profile = Some(args.scene.reward_profile.clone());
     let total_budget: u64 = behaviours.iter().map(|b| b.budget).sum();
     let done: u64 = behaviours.iter().map(|b| b.agent_steps.min(b.budget)).sum();
     let progress = Progress::new(

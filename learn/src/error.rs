@@ -19,6 +19,17 @@ pub enum LearnError {
     /// `--resume` asked for something the run folder cannot give.
     #[error("--resume: {run}: {reason}")]
     Resume { run: PathBuf, reason: String },
+    /// A run asked to continue (`--resume`) or to be reused (`reproduce`)
+    /// under another reward profile than the one it trained with.
+    #[error(
+        "{run} trained with reward profile {had}, not {want}: {what} it with --reward-profile {had}, or use another run folder"
+    )]
+    RewardProfile {
+        run: PathBuf,
+        had: String,
+        want: String,
+        what: &'static str,
+    },
     /// A policy folder of another algorithm than the one asked for.
     #[error("{path} holds a {found} policy; {wanted} is needed here ({context})")]
     WrongAlgorithm {

@@ -239,6 +239,22 @@ fn resume_continues_at_the_same_step_and_init_from_resets_it() {
         e.contains("seabream_default") && e.contains("seabream_cube5"),
         "{e}"
     );
+    // So is resuming it under another reward profile than it trained with.
+    let mut thesis = args(&dir, "seabream_default", 5000, 2, true, vec![]);
+    thesis.scene = Scene::load(
+        &dirs().with_reward_profile("thesis"),
+        "seabream_default",
+        Phase::Pretrain,
+    )
+    .unwrap();
+    let e = train(&Ppo::new(cfg.clone()), thesis)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("trained with reward profile mean_then_budget_space20, not thesis"),
+        "{e}"
+    );
 
     // --init-from: weights come from the run, the step count starts at 0.
     let child = temp("child");

@@ -469,6 +469,7 @@ fn run_stage(
     if dir.join("final").join("state.json").is_file() {
         let state = deepfoids_learn::checkpoint::RunState::load(&dir.join("final"))?;
         check_budgets(&dir, &state, &budgets)?;
+        state.check_reward_profile(&dir, &dirs.reward_profile, "reuse")?;
         if !record.timed {
             // Trained outside `reproduce` (same layout): time it by its files.
             record.wall_seconds = file_seconds(&dir).unwrap_or(f64::NAN);
