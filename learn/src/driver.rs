@@ -618,10 +618,11 @@ fn setup<T: Trainer>(
         hidden,
         layers,
         behaviours: vec![],
-        reward_profile: Some(args.scene.reward_profile.clone()),
+        reward_profile: None,
     });
     state.resets = resets;
-    // A run from before the profile was recorded passed the check by its config.toml.
+    // New and resumed runs alike (a resumed run from before the profile was
+    // recorded passed the check by its config.toml).
     state.reward_profile = Some(args.scene.reward_profile.clone());
     let total_budget: u64 = behaviours.iter().map(|b| b.budget).sum();
     let done: u64 = behaviours.iter().map(|b| b.agent_steps.min(b.budget)).sum();
