@@ -113,6 +113,23 @@ fn main() {
             1e3 * best_infer[0],
             1e3 * best_infer[1]
         );
+        // Acting on byte frames, as the updates read them: what a sensor that
+        // handed the policy its frames as bytes would let acting do.
+        let mut best_bytes = [f64::MAX; 2];
+        for _ in 0..reps {
+            for (i, sparse_below) in [0.0f32, 1.0].into_iter().enumerate() {
+                actor.sparse_below = sparse_below;
+                let t = Instant::now();
+                actor.infer(GridsRef::Compact(&g.bytes), &mut out);
+                std::hint::black_box(&out);
+                best_bytes[i] = best_bytes[i].min(t.elapsed().as_secs_f64());
+            }
+        }
+        println!(
+            "{scene}: actor encoder inference on byte frames (K = 1): im2col + GEMM {:.1} ms, non-zeros {:.1} ms",
+            1e3 * best_bytes[0],
+            1e3 * best_bytes[1]
+        );
         println!(
             "{scene} ({:.0} % non-zero): im2col + GEMM {:.1} ms, non-zeros {:.1} ms: {:.2}×",
             100.0 * nz as f64 / (n * STACKED_LEN) as f64,
