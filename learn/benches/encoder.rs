@@ -93,43 +93,34 @@ fn main() {
                 best[i] = best[i].min(t.elapsed().as_secs_f64());
             }
         }
-        // Acting: the actor's encoder alone (K = 1) on the environment's f32 grids.
+        // Acting: the actor's encoder alone (K = 1), on the environment's f32
+        // grids and on byte frames as the updates read them (what a sensor
+        // that handed the policy its frames as bytes would let acting do).
         let dense = g.to_dense();
-        let actor = pack1(&pack);
+        let mut actor = pack1(&pack);
         let mut out = vec![0.0f32; n * hidden];
-        let mut best_infer = [f64::MAX; 2];
-        let mut actor = actor;
-        for _ in 0..reps {
-            for (i, sparse_below) in [0.0f32, 1.0].into_iter().enumerate() {
-                actor.sparse_below_dense = sparse_below;
-                let t = Instant::now();
-                actor.infer(GridsRef::Dense(&dense), &mut out);
-                std::hint::black_box(&out);
-                best_infer[i] = best_infer[i].min(t.elapsed().as_secs_f64());
+        let inputs = [
+            ("f32 grids", GridsRef::Dense(&dense)),
+            ("byte frames", GridsRef::Compact(&g.bytes)),
+        ];
+        for (what, grids) in inputs {
+            let mut best_infer = [f64::MAX; 2];
+            for _ in 0..reps {
+                for (i, sparse_below) in [0.0f32, 1.0].into_iter().enumerate() {
+                    actor.sparse_below = sparse_below;
+                    actor.sparse_below_dense = sparse_below;
+                    let t = Instant::now();
+                    actor.infer(grids, &mut out);
+                    std::hint::black_box(&out);
+                    best_infer[i] = best_infer[i].min(t.elapsed().as_secs_f64());
+                }
             }
+            println!(
+                "{scene}: actor encoder inference on {what} (K = 1): im2col + GEMM {:.1} ms, non-zeros {:.1} ms",
+                1e3 * best_infer[0],
+                1e3 * best_infer[1]
+            );
         }
-        println!(
-            "{scene}: actor encoder inference on f32 grids (K = 1): im2col + GEMM {:.1} ms, non-zeros {:.1} ms",
-            1e3 * best_infer[0],
-            1e3 * best_infer[1]
-        );
-        // Acting on byte frames, as the updates read them: what a sensor that
-        // handed the policy its frames as bytes would let acting do.
-        let mut best_bytes = [f64::MAX; 2];
-        for _ in 0..reps {
-            for (i, sparse_below) in [0.0f32, 1.0].into_iter().enumerate() {
-                actor.sparse_below = sparse_below;
-                let t = Instant::now();
-                actor.infer(GridsRef::Compact(&g.bytes), &mut out);
-                std::hint::black_box(&out);
-                best_bytes[i] = best_bytes[i].min(t.elapsed().as_secs_f64());
-            }
-        }
-        println!(
-            "{scene}: actor encoder inference on byte frames (K = 1): im2col + GEMM {:.1} ms, non-zeros {:.1} ms",
-            1e3 * best_bytes[0],
-            1e3 * best_bytes[1]
-        );
         println!(
             "{scene} ({:.0} % non-zero): im2col + GEMM {:.1} ms, non-zeros {:.1} ms: {:.2}×",
             100.0 * nz as f64 / (n * STACKED_LEN) as f64,
