@@ -5,7 +5,7 @@
 //! shipped policies fails here.
 
 use deepfoids_env::policy::{act_and_step, action_buffers};
-use deepfoids_env::{ConfigDirs, Env, Phase, Policy};
+use deepfoids_env::{ConfigDirs, Env, GridsRef, Phase, Policy};
 use deepfoids_experiments::reproduce::ship::{Card, SHIPPED, figure_values, shipped_name};
 use deepfoids_experiments::{load_scene, load_trained};
 use std::path::PathBuf;
@@ -80,14 +80,25 @@ fn shipped_policies_match_their_onnx_twins() {
         env.observe_now();
         for (b, batch) in env.output().behaviours.iter().enumerate() {
             let n = batch.n_agents.min(64);
-            let grids = &batch.grids[..n * 18 * 20 * 34];
+            // Driven by its policy, the env hands out the sensor's bytes; ONNX
+            // and Burn read the same observations rebuilt as floats.
+            let bytes = &batch.frames[..n * deepfoids_sensors::STACK_BYTES];
+            let dense = GridsRef::Compact(bytes).to_dense();
+            let grids = &dense[..];
             let vectors = &batch.vectors[..n * 6];
             let onnx_path = dir.join("final").join(format!("{}.onnx", batch.name));
             let onnx = deepfoids_onnx::OnnxPolicy::load(&onnx_path, false).unwrap();
             let want = onnx.run(grids, vectors, n).unwrap();
             let actor = policy.actor(b);
             for (what, got) in [
-                ("fused kernels", actor.deterministic(grids, vectors)),
+                (
+                    "fused kernels on bytes",
+                    actor.deterministic(GridsRef::Compact(bytes), vectors),
+                ),
+                (
+                    "fused kernels on floats",
+                    actor.deterministic(GridsRef::Dense(grids), vectors),
+                ),
                 ("Burn layers", actor.deterministic_reference(grids, vectors)),
             ] {
                 assert_eq!(got.len(), want.len());

@@ -76,9 +76,10 @@ use crate::state::State;
 use crate::sun::SunPlace;
 use crate::traits::{self, FishParams, Traits};
 use crate::world::{Chase, World};
+use deepfoids_sensors::frames::{dequantise, quantise};
 use deepfoids_sensors::{
-    FRAME_LEN, Frame, GridSensor, Obstacle, STACK, STACKED_LEN, SpatialGrid, push_frame,
-    reset_stack,
+    FRAME_BYTES, FRAME_LEN, Frame, FrameCell, GridFormat, GridSensor, GridsRef, Obstacle, STACK,
+    STACK_BYTES, STACKED_LEN, SpatialGrid, push_frame, reset_stack,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -132,8 +133,13 @@ pub struct BehaviourBatch {
     pub n_agents: usize,
     /// Whether the behaviour decided at this tick (the rest is fresh only then).
     pub decided: bool,
-    /// Stacked grids `[n_agents, 18, 20, 34]`.
+    /// Stacked grids `[n_agents, 18, 20, 34]` when the env hands out floats
+    /// ([`GridFormat::Floats`], the default); empty otherwise.
     pub grids: Vec<f32>,
+    /// The same stacks as bytes (`n_agents` × [`STACK_BYTES`],
+    /// [`deepfoids_sensors::frames`]) when the env hands out
+    /// [`GridFormat::Bytes`]; empty otherwise.
+    pub frames: Vec<u8>,
     /// Vector observations `[n_agents, 6]`.
     pub vectors: Vec<f32>,
     /// Reward since the previous decision.
@@ -149,6 +155,58 @@ pub struct BehaviourBatch {
     /// Neighbour collisions that began since the previous decision (partners
     /// not already touched during the previous decision).
     pub new_collisions: Vec<u16>,
+}
+
+impl BehaviourBatch {
+    /// The stacked grids in whichever format the env hands out.
+    pub fn observations(&self) -> GridsRef<'_> {
+        if self.frames.is_empty() {
+            GridsRef::Dense(&self.grids)
+        } else {
+            GridsRef::Compact(&self.frames)
+        }
+    }
+
+    /// Hold the stacks in `format`, converting what is held (bytes to floats
+    /// rebuild the proximities within 1/510).
+    fn convert(&mut self, format: GridFormat) {
+        match format {
+            GridFormat::Bytes if self.frames.is_empty() => {
+                self.frames = vec![0; self.n_agents * STACK_BYTES];
+                for (src, dst) in self
+                    .grids
+                    .chunks_exact(FRAME_LEN)
+                    .zip(self.frames.chunks_exact_mut(FRAME_BYTES))
+                {
+                    quantise(src, dst);
+                }
+                self.grids = Vec::new();
+            }
+            GridFormat::Floats if self.grids.is_empty() => {
+                self.grids = vec![0.0; self.n_agents * STACKED_LEN];
+                for (src, dst) in self
+                    .frames
+                    .chunks_exact(FRAME_BYTES)
+                    .zip(self.grids.chunks_exact_mut(FRAME_LEN))
+                {
+                    dequantise(src, dst);
+                }
+                self.frames = Vec::new();
+            }
+            _ => {}
+        }
+    }
+
+    /// The newest frame of agent `a`'s stack, written from `frame`.
+    fn write_newest(&mut self, a: usize, frame: &Frame) {
+        if self.frames.is_empty() {
+            frame.write(&mut self.grids[a * STACKED_LEN + (STACK - 1) * FRAME_LEN..][..FRAME_LEN]);
+        } else {
+            frame.write_bytes(
+                &mut self.frames[a * STACK_BYTES + (STACK - 1) * FRAME_BYTES..][..FRAME_BYTES],
+            );
+        }
+    }
 }
 
 /// State of every fish, copied at each tick for logging.
@@ -276,11 +334,19 @@ pub struct Env {
     tick_steps: usize,
     times: StageTimes,
     output: StepOutput,
+    grid_format: GridFormat,
 }
 
 impl Env {
-    /// Build the world of `scene` with per-fish traits drawn from `seed`, and reset it.
+    /// Build the world of `scene` with per-fish traits drawn from `seed`, and
+    /// reset it; the grids are handed out as floats.
     pub fn new(scene: Scene, seed: u64) -> Self {
+        Self::with_grid_format(scene, seed, GridFormat::Floats)
+    }
+
+    /// [`Env::new`] handing out the grids in `format` (bytes: 12× less memory,
+    /// and what the fused kernels act on directly).
+    pub fn with_grid_format(scene: Scene, seed: u64, format: GridFormat) -> Self {
         let (mut info, world, traits) = traits::draw(&scene, seed);
         let n = world.len();
         let tick_steps = info.iter().map(|b| b.steps_per_decision).fold(0, gcd);
@@ -303,7 +369,14 @@ impl Env {
                     first: b.first,
                     n_agents: b.count,
                     decided: true,
-                    grids: vec![0.0; b.count * STACKED_LEN],
+                    grids: match format {
+                        GridFormat::Floats => vec![0.0; b.count * STACKED_LEN],
+                        GridFormat::Bytes => Vec::new(),
+                    },
+                    frames: match format {
+                        GridFormat::Floats => Vec::new(),
+                        GridFormat::Bytes => vec![0; b.count * STACK_BYTES],
+                    },
                     vectors: vec![0.0; b.count * VECTOR_OBS],
                     rewards: vec![0.0; b.count],
                     terms: vec![[0.0; N_TERMS]; b.count],
@@ -353,6 +426,7 @@ impl Env {
             tick_steps,
             times: StageTimes::default(),
             output,
+            grid_format: format,
         };
         env.reset();
         env
@@ -423,6 +497,27 @@ impl Env {
     /// world with [`Env::world_mut`]).
     pub fn observe_now(&mut self) {
         self.observe(Mode::Refresh);
+    }
+
+    /// How the grids are handed out.
+    pub fn grid_format(&self) -> GridFormat {
+        self.grid_format
+    }
+
+    /// Hand the grids out in `format` from now on; the stacks held are
+    /// converted (the newest frames are sensed again when going to floats, so
+    /// only older frames carry the bytes' rounding, ≤ 1/510).
+    pub fn set_grid_format(&mut self, format: GridFormat) {
+        if format == self.grid_format {
+            return;
+        }
+        self.grid_format = format;
+        for batch in &mut self.output.behaviours {
+            batch.convert(format);
+        }
+        if format == GridFormat::Floats {
+            self.observe(Mode::Refresh);
+        }
     }
 
     pub fn scene(&self) -> &Scene {
@@ -641,37 +736,18 @@ impl Env {
                 batch.decided = true;
             }
             let r = self.model.info[b].range();
-            (
-                batch.grids.par_chunks_mut(STACKED_LEN),
-                batch.vectors.par_chunks_mut(VECTOR_OBS),
-                outcome[r.clone()].par_iter_mut(),
-            )
-                .into_par_iter()
-                .with_min_len(PAR_MIN_LEN)
-                .enumerate()
-                .for_each(|(a, (stack, vector, out))| {
-                    let i = r.start + a;
-                    let mut frame = Frame::new(1.0);
-                    let seen = sensing.sense(i, &mut frame);
-                    let newest = match mode {
-                        Mode::Reset => {
-                            *out = Outcome::default();
-                            reset_stack(stack)
-                        }
-                        Mode::Decision => {
-                            *out = rewards.evaluate(i, &seen);
-                            if out.terminated {
-                                reset_stack(stack)
-                            } else {
-                                push_frame(stack)
-                            }
-                        }
-                        Mode::Refresh => &mut stack[(STACK - 1) * FRAME_LEN..],
-                    };
-                    out.nearest_subordinate = seen.nearest_subordinate;
-                    frame.write(newest);
-                    sensing.vector_obs(i, &seen, vector);
-                });
+            let pass = DecisionPass {
+                mode,
+                sensing: &sensing,
+                rewards: &rewards,
+                first: r.start,
+            };
+            let outcome = &mut outcome[r];
+            if batch.frames.is_empty() {
+                pass.run(&mut batch.grids, &mut batch.vectors, outcome);
+            } else {
+                pass.run(&mut batch.frames, &mut batch.vectors, outcome);
+            }
         }
         if mode != Mode::Refresh {
             self.publish_outcomes(mode);
@@ -748,15 +824,60 @@ impl Env {
             let batch = &mut self.output.behaviours[b];
             let mut frame = Frame::new(1.0);
             let seen = sensing.sense(i, &mut frame);
-            frame.write(
-                &mut batch.grids[a * STACKED_LEN + (STACK - 1) * FRAME_LEN..(a + 1) * STACKED_LEN],
-            );
+            batch.write_newest(a, &frame);
             sensing.vector_obs(
                 i,
                 &seen,
                 &mut batch.vectors[a * VECTOR_OBS..(a + 1) * VECTOR_OBS],
             );
         }
+    }
+}
+
+/// Pass A of a decision over one behaviour's agents, parallel per fish:
+/// surroundings, reward, episode end, newest frame (floats or bytes) and
+/// vector observation.
+struct DecisionPass<'a> {
+    mode: Mode,
+    sensing: &'a Sensing<'a>,
+    rewards: &'a Rewards<'a>,
+    /// The behaviour's first fish.
+    first: usize,
+}
+
+impl DecisionPass<'_> {
+    fn run<T: FrameCell>(&self, stacks: &mut [T], vectors: &mut [f32], outcome: &mut [Outcome]) {
+        (
+            stacks.par_chunks_mut(STACK * T::FRAME),
+            vectors.par_chunks_mut(VECTOR_OBS),
+            outcome.par_iter_mut(),
+        )
+            .into_par_iter()
+            .with_min_len(PAR_MIN_LEN)
+            .enumerate()
+            .for_each(|(a, (stack, vector, out))| {
+                let i = self.first + a;
+                let mut frame = Frame::new(1.0);
+                let seen = self.sensing.sense(i, &mut frame);
+                let newest = match self.mode {
+                    Mode::Reset => {
+                        *out = Outcome::default();
+                        reset_stack(stack)
+                    }
+                    Mode::Decision => {
+                        *out = self.rewards.evaluate(i, &seen);
+                        if out.terminated {
+                            reset_stack(stack)
+                        } else {
+                            push_frame(stack)
+                        }
+                    }
+                    Mode::Refresh => &mut stack[(STACK - 1) * T::FRAME..],
+                };
+                out.nearest_subordinate = seen.nearest_subordinate;
+                T::write(&frame, newest);
+                self.sensing.vector_obs(i, &seen, vector);
+            });
     }
 }
 

@@ -29,6 +29,7 @@ pub mod traits;
 pub mod world;
 
 pub use config::{ConfigDirs, ConfigError, Phase};
+pub use deepfoids_sensors::{GridFormat, GridsRef};
 pub use env::{
     BehaviourBatch, BehaviourInfo, Env, EnvError, FishState, N_TERMS, StageTimes, StepOutput,
     TERM_NAMES, VECTOR_OBS,

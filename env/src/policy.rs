@@ -7,6 +7,7 @@ use crate::config::ActionTiming;
 use crate::env::{Env, EnvError, StepOutput};
 use crate::rng::{Purpose, Stream};
 use crate::traits::FishParams;
+use deepfoids_sensors::GridFormat;
 
 /// Errors a policy may report while it acts.
 #[derive(Debug, thiserror::Error)]
@@ -45,6 +46,13 @@ pub trait Policy {
     fn action_timing(&self) -> Option<ActionTiming> {
         None
     }
+
+    /// How this policy reads the grids, if it cares: the fused-kernel actors
+    /// act on bytes, the ONNX runtime on floats. [`act_and_step`] sets it on
+    /// the env. Default: `None` (whatever the env hands out).
+    fn grid_format(&self) -> Option<GridFormat> {
+        None
+    }
 }
 
 /// Errors of [`act_and_step`].
@@ -66,6 +74,9 @@ pub fn act_and_step<'e>(
 ) -> Result<&'e StepOutput, DriveError> {
     if let Some(t) = policy.action_timing() {
         env.set_action_timing(t);
+    }
+    if let Some(f) = policy.grid_format() {
+        env.set_grid_format(f);
     }
     policy
         .act(env, actions)

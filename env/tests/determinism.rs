@@ -77,3 +77,79 @@ fn reset_is_reproducible() {
     assert_eq!(env.output().behaviours[0].grids, first);
     assert_eq!(env.output().tick, 0);
 }
+
+/// An env handing out bytes is the same world: at every tick of a random run
+/// (chases and respawns in `three_species`) its stacks are the float env's
+/// stacks quantised, frame by frame, and the rest of the output is equal.
+/// Switching formats mid-run converts the stacks held, and going back to
+/// floats senses the newest frames again exactly.
+#[test]
+fn byte_frames_are_the_float_frames_quantised() {
+    use deepfoids_env::{GridFormat, GridsRef};
+    use deepfoids_sensors::frames::quantise;
+    use deepfoids_sensors::{FRAME_BYTES, FRAME_LEN, STACK, STACK_BYTES, STACKED_LEN};
+    let quantised = |grids: &[f32]| {
+        let mut out = vec![0u8; grids.len() / STACKED_LEN * STACK_BYTES];
+        for (src, dst) in grids
+            .chunks_exact(FRAME_LEN)
+            .zip(out.chunks_exact_mut(FRAME_BYTES))
+        {
+            quantise(src, dst);
+        }
+        out
+    };
+    let scene = Scene::load(&dirs(), "three_species", Phase::Pretrain).unwrap();
+    let mut floats = Env::new(scene.clone(), 4);
+    let mut bytes = Env::with_grid_format(scene, 4, GridFormat::Bytes);
+    assert_eq!(bytes.grid_format(), GridFormat::Bytes);
+    let mut policy = RandomPolicy { seed: 9 };
+    let mut actions = action_buffers(&floats);
+    let mut respawns = 0;
+    for tick in 0..40 {
+        for (f, b) in floats
+            .output()
+            .behaviours
+            .iter()
+            .zip(&bytes.output().behaviours)
+        {
+            assert!(b.grids.is_empty() && f.frames.is_empty());
+            assert!(matches!(b.observations(), GridsRef::Compact(_)));
+            assert_eq!(b.frames, quantised(&f.grids), "tick {tick}, {}", b.name);
+            assert_eq!((&b.vectors, &b.rewards), (&f.vectors, &f.rewards));
+            respawns += f.terminated.iter().filter(|&&t| t).count();
+        }
+        assert_eq!(bytes.world().position, floats.world().position);
+        policy.act(&floats, &mut actions).unwrap();
+        floats.step(&actions).unwrap();
+        bytes.step(&actions).unwrap();
+    }
+    assert!(respawns > 0, "the run should see respawns");
+    // Floats → bytes: the same bytes; bytes → floats: the older frames
+    // within 1/510, the newest sensed again (exact).
+    let before = floats.output().behaviours[0].grids.clone();
+    floats.set_grid_format(GridFormat::Bytes);
+    assert_eq!(
+        floats.output().behaviours[0].frames,
+        bytes.output().behaviours[0].frames
+    );
+    bytes.set_grid_format(GridFormat::Floats);
+    let back = &bytes.output().behaviours[0].grids;
+    assert_eq!(back.len(), before.len());
+    for (a, (x, y)) in back
+        .chunks_exact(STACKED_LEN)
+        .zip(before.chunks_exact(STACKED_LEN))
+        .enumerate()
+    {
+        let newest = (STACK - 1) * FRAME_LEN;
+        assert_eq!(x[newest..], y[newest..], "agent {a}'s newest frame");
+        let worst = x[..newest]
+            .iter()
+            .zip(&y[..newest])
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst <= deepfoids_sensors::frames::PROXIMITY_TOLERANCE,
+            "agent {a}: {worst}"
+        );
+    }
+}

@@ -1,6 +1,6 @@
 //! `Env::step` allocates nothing: all buffers are made in `Env::new`.
 use deepfoids_env::policy::action_buffers;
-use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy, Scene};
+use deepfoids_env::{ConfigDirs, Env, GridFormat, Phase, Policy, RandomPolicy, Scene};
 
 #[global_allocator]
 static GLOBAL: deepfoids_testkit::Counting = deepfoids_testkit::Counting;
@@ -19,10 +19,15 @@ fn step_allocates_nothing() {
 
 fn run() {
     let dirs = ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"));
-    for id in ["three_species", "seabream_default"] {
+    // Both grid formats: floats (the default) and the sensor's bytes.
+    for (id, format) in [
+        ("three_species", GridFormat::Floats),
+        ("seabream_default", GridFormat::Floats),
+        ("three_species", GridFormat::Bytes),
+    ] {
         let mut scene = Scene::load(&dirs, id, Phase::Pretrain).unwrap();
         scene.physics.chase_probability = 0.5; // exercise chase starts and re-sensing too
-        let mut env = Env::new(scene, 3);
+        let mut env = Env::with_grid_format(scene, 3, format);
         let mut policy = RandomPolicy { seed: 4 };
         let mut actions = action_buffers(&env);
         for _ in 0..5 {
@@ -36,6 +41,6 @@ fn run() {
             env.step(&actions).unwrap();
             during += deepfoids_testkit::allocations() - before;
         }
-        assert_eq!(during, 0, "{id}: allocations during 30 steps");
+        assert_eq!(during, 0, "{id} ({format:?}): allocations during 30 steps");
     }
 }

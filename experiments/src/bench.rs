@@ -8,18 +8,25 @@ use crate::training::Config;
 use crate::{bounds, load_actor, load_scene};
 use anyhow::Result;
 use deepfoids_env::policy::action_buffers;
-use deepfoids_env::{ConfigDirs, Env, Phase, Policy, RandomPolicy};
+use deepfoids_env::{ConfigDirs, Env, GridFormat, GridsRef, Phase, Policy, RandomPolicy};
 use deepfoids_learn::plan::UpdatePlan;
 use deepfoids_learn::{Algorithm, Backend, ProgressMode, RunArgs};
 use std::path::Path;
 use std::time::Instant;
 
 /// `bench env`: agent-decisions per second with random actions in `scene`,
-/// sensor included, `warmup` simulated seconds excluded; and where the time
-/// goes.
-pub fn env(dirs: &ConfigDirs, scene: &str, seconds: f64, warmup: f64, seed: u64) -> Result<()> {
+/// sensor included (its grids handed out in `format`), `warmup` simulated
+/// seconds excluded; and where the time goes.
+pub fn env(
+    dirs: &ConfigDirs,
+    scene: &str,
+    seconds: f64,
+    warmup: f64,
+    seed: u64,
+    format: GridFormat,
+) -> Result<()> {
     let scene = load_scene(dirs, scene, Phase::Pretrain)?;
-    let mut env = Env::new(scene, seed);
+    let mut env = Env::with_grid_format(scene, seed, format);
     let mut policy = RandomPolicy { seed };
     let mut actions = action_buffers(&env);
     let warm = (warmup / env.tick_seconds()).round() as u64;
@@ -53,9 +60,13 @@ pub fn env(dirs: &ConfigDirs, scene: &str, seconds: f64, warmup: f64, seed: u64)
     let sensing = (after.sensing - before.sensing).as_secs_f64();
     let chases = (after.chases - before.chases).as_secs_f64();
     println!(
-        "{}: {} fish, {} threads, {:.1} simulated s in {:.2} s wall",
+        "{}: {} fish, grids as {}, {} threads, {:.1} simulated s in {:.2} s wall",
         env.scene().id,
         env.world().len(),
+        match format {
+            GridFormat::Bytes => "bytes",
+            GridFormat::Floats => "floats",
+        },
         rayon::current_num_threads(),
         ticks as f64 * env.tick_seconds(),
         wall
@@ -224,9 +235,10 @@ pub fn train(dirs: &ConfigDirs, args: &TrainBench) -> Result<()> {
 pub const BENCH_UPDATES: u64 = 3;
 
 /// `deepfoids bench policy`: deterministic actions for `agents` sensor-like
-/// observations per call of a run's first behaviour: the fused kernels (what acting uses),
-/// Burn's own layers, and the run's ONNX export in tract; the largest
-/// difference between them.
+/// observations per call of a run's first behaviour: the fused kernels on the
+/// sensor's bytes (what acting uses) and on the same grids as floats, Burn's
+/// own layers, and the run's ONNX export in tract; the largest difference
+/// between them.
 pub fn policy(run: &Path, agents: usize, reps: usize) -> Result<()> {
     use deepfoids_learn::checkpoint::{RunState, policy_dir};
     let dir = policy_dir(run, None)?;
@@ -264,9 +276,15 @@ pub fn policy(run: &Path, agents: usize, reps: usize) -> Result<()> {
             }
         }
     }
+    // The sensor hands out bytes; the floats are those bytes rebuilt, so
+    // every path sees the same observation.
+    let frames = deepfoids_learn::frames::CompactGrids::from_dense(&grids);
+    let grids = frames.to_dense();
+    let bytes = GridsRef::Compact(&frames.bytes);
     let nonzero = grids.iter().filter(|&&v| v != 0.0).count() as f64 / grids.len() as f64;
     let vectors: Vec<f32> = (0..n * 6).map(|_| s.range(-1.0, 1.0)).collect();
-    let fused = actor.deterministic(&grids, &vectors);
+    let fused = actor.deterministic(bytes, &vectors);
+    let fused_floats = actor.deterministic(GridsRef::Dense(&grids), &vectors);
     let reference = actor.deterministic_reference(&grids, &vectors);
     let onnx = tract.run(&grids, &vectors, n)?;
     let diff = |a: &[f32], b: &[f32]| {
@@ -276,7 +294,8 @@ pub fn policy(run: &Path, agents: usize, reps: usize) -> Result<()> {
             .fold(0.0f32, f32::max)
     };
     // Interleaved repetitions, the fastest of each kept (the machine is shared).
-    let (mut t_fused, mut t_burn, mut t_tract) = (f64::MAX, f64::MAX, f64::MAX);
+    let (mut t_fused, mut t_floats, mut t_burn, mut t_tract) =
+        (f64::MAX, f64::MAX, f64::MAX, f64::MAX);
     let time = |f: &mut dyn FnMut()| {
         let t = Instant::now();
         f();
@@ -284,7 +303,10 @@ pub fn policy(run: &Path, agents: usize, reps: usize) -> Result<()> {
     };
     for _ in 0..reps {
         t_fused = t_fused.min(time(&mut || {
-            actor.deterministic(&grids, &vectors);
+            actor.deterministic(bytes, &vectors);
+        }));
+        t_floats = t_floats.min(time(&mut || {
+            actor.deterministic(GridsRef::Dense(&grids), &vectors);
         }));
         t_burn = t_burn.min(time(&mut || {
             actor.deterministic_reference(&grids, &vectors);
@@ -295,18 +317,22 @@ pub fn policy(run: &Path, agents: usize, reps: usize) -> Result<()> {
     }
     let rate = |t: f64| n as f64 / t;
     println!(
-        "{n} agents per call ({:.0} % of the grid inputs non-zero), {} threads, fastest of {} interleaved calls: kernels {:.1} ms ({:.0} samples/s), Burn layers {:.1} ms ({:.0}/s), tract {:.1} ms ({:.0}/s); kernels {:.1}× Burn, {:.1}× tract; max |Δaction| kernels–Burn {:.1e}, kernels–tract {:.1e}",
+        "{n} agents per call ({:.0} % of the grid inputs non-zero), {} threads, fastest of {} interleaved calls: kernels on the sensor's bytes {:.1} ms ({:.0} samples/s), on floats {:.1} ms ({:.0}/s), Burn layers {:.1} ms ({:.0}/s), tract {:.1} ms ({:.0}/s); bytes {:.2}× floats, {:.1}× Burn, {:.1}× tract; max |Δaction| bytes–floats {:.1e}, kernels–Burn {:.1e}, kernels–tract {:.1e}",
         100.0 * nonzero,
         rayon::current_num_threads(),
         reps,
         t_fused * 1e3,
         rate(t_fused),
+        t_floats * 1e3,
+        rate(t_floats),
         t_burn * 1e3,
         rate(t_burn),
         t_tract * 1e3,
         rate(t_tract),
+        t_floats / t_fused,
         t_burn / t_fused,
         t_tract / t_fused,
+        diff(&fused, &fused_floats),
         diff(&fused, &reference),
         diff(&fused, &onnx)
     );

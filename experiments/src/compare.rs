@@ -17,7 +17,7 @@ use crate::{bounds, load_scene, load_trained, lock_dir};
 use anyhow::{Context, Result, bail};
 use deepfoids_env::limits::MAX_SEEDS;
 use deepfoids_env::metrics::{SchoolState, Summary};
-use deepfoids_env::{ConfigDirs, Env, N_TERMS, TERM_NAMES};
+use deepfoids_env::{ConfigDirs, Env, GridFormat, N_TERMS, TERM_NAMES};
 use deepfoids_learn::checkpoint::{RunState, policy_dir};
 use plotters::prelude::*;
 use std::collections::BTreeMap;
@@ -195,7 +195,7 @@ pub fn run(dirs: &ConfigDirs, args: &CompareOptions) -> Result<()> {
         );
         let mut summaries = Vec::new();
         for seed in 0..args.seeds {
-            let mut env = Env::new(scene.clone(), seed);
+            let mut env = Env::with_grid_format(scene.clone(), seed, GridFormat::Bytes);
             let mut policy = load_trained(&r.dir, None, &env, args.deterministic, seed)?;
             let eval = evaluate(&mut env, &mut policy, 0.0, args.seconds, |_, _, _| {})?;
             summaries.push(eval.recorder.summary(eval.seconds));

@@ -17,7 +17,7 @@
 use crate::{PolicyOptions, lock_dir, make_policy};
 use anyhow::{Context, Result, bail};
 use deepfoids_env::policy::{act_and_step, action_buffers};
-use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
+use deepfoids_env::{ConfigDirs, Env, GridFormat, Policy, Scene};
 use deepfoids_render::dataset::ImageFormat;
 use deepfoids_render::setup::{TailPhases, place_camera, poses, species_meshes};
 use deepfoids_render::{
@@ -84,7 +84,7 @@ impl Clip {
         policy: &str,
         options: &PolicyOptions,
     ) -> Result<Self> {
-        let env = Env::new(scene, seed);
+        let env = Env::with_grid_format(scene, seed, GridFormat::Bytes);
         let policy = make_policy(dirs, policy, seed, &env, options)?;
         let actions = action_buffers(&env);
         let phases = TailPhases::new(env.world().len(), seed);

@@ -53,7 +53,7 @@ use crate::plan::{MemoryPlan, Part, UpdatePlan};
 use crate::progress::{Progress, ProgressMode};
 use crate::stats::EpisodeStats;
 use burn::prelude::Device;
-use deepfoids_env::{BehaviourBatch, BehaviourInfo, Env, Phase, Scene};
+use deepfoids_env::{BehaviourBatch, BehaviourInfo, Env, GridFormat, Phase, Scene};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -553,10 +553,15 @@ fn resume_from<T: Trainer>(
     Ok((st, env, behaviours))
 }
 
-/// The environment, reseeded with `seed + resets` on resume.
+/// The environment, reseeded with `seed + resets` on resume; it hands the
+/// grids out as the sensor's bytes, which the learners act on and store.
 fn new_env(args: &RunArgs, resumed: Option<&RunState>) -> Env {
     let resets = resumed.map_or(0, |s| s.resets + 1);
-    Env::new(args.scene.clone(), args.seed.wrapping_add(resets))
+    Env::with_grid_format(
+        args.scene.clone(),
+        args.seed.wrapping_add(resets),
+        GridFormat::Bytes,
+    )
 }
 
 /// Everything the loop changes, from [`setup`] to [`Session::finish`].

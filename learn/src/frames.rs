@@ -1,5 +1,5 @@
 //! Grid frames stored compactly: the experience buffers of both trainers keep
-//! each frame once, in bytes.
+//! each frame once, in the sensor's bytes ([`deepfoids_sensors::frames`]).
 //!
 //! A frame is `[proximity, fish, net, surface, obstacle, chase partner]` over
 //! 20 × 34 cells; the five type channels are one-hot (or all zero where nothing
@@ -10,49 +10,29 @@
 //! against 48,960 as floats; a frame missing from a stack (the two older
 //! frames after a respawn, SPEC §7) is all zero bytes, which rebuilds as zeros.
 
-use deepfoids_sensors::{CELLS, CHANNELS, FRAME_LEN, STACK, STACKED_LEN};
+pub use deepfoids_sensors::frames::{
+    FRAME_BYTES, PROXIMITY_TOLERANCE, STACK_BYTES, dequantise, quantise,
+};
+use deepfoids_sensors::{FRAME_LEN, GridsRef, STACK, STACKED_LEN};
 
-/// Bytes of one quantised frame.
-pub const FRAME_BYTES: usize = 2 * CELLS;
-/// Bytes of one quantised stacked observation.
-pub const STACK_BYTES: usize = STACK * FRAME_BYTES;
-/// Largest error of a rebuilt proximity value: 1/510, plus f32 rounding.
-pub const PROXIMITY_TOLERANCE: f32 = 0.5 / 255.0 + 1e-6;
-
-/// Frame `[6, 20, 34]` floats → [`FRAME_BYTES`] bytes.
-pub fn quantise(frame: &[f32], out: &mut [u8]) {
-    debug_assert_eq!(frame.len(), FRAME_LEN);
-    let (prox, kind) = out.split_at_mut(CELLS);
-    for c in 0..CELLS {
-        prox[c] = (frame[c].clamp(0.0, 1.0) * 255.0).round() as u8;
-        kind[c] = (1..CHANNELS)
-            .find(|&k| frame[k * CELLS + c] > 0.5)
-            .unwrap_or(0) as u8;
-    }
-}
-
-/// [`FRAME_BYTES`] bytes → frame `[6, 20, 34]` floats.
-pub fn dequantise(bytes: &[u8], frame: &mut [f32]) {
-    let (prox, kind) = bytes.split_at(CELLS);
-    let (p, types) = frame.split_at_mut(CELLS);
-    for (dst, &q) in p.iter_mut().zip(prox) {
-        *dst = q as f32 * (1.0 / 255.0);
-    }
-    for (k, channel) in types.chunks_exact_mut(CELLS).enumerate() {
-        let k = k as u8 + 1;
-        for (v, &kd) in channel.iter_mut().zip(kind) {
-            *v = (kd == k) as u8 as f32;
+/// The newest frame of each stacked observation in `grids` as bytes into
+/// `out` (`n` × [`FRAME_BYTES`]): floats quantised, bytes copied.
+pub fn newest_frames(grids: GridsRef<'_>, out: &mut [u8]) {
+    use rayon::prelude::*;
+    match grids {
+        GridsRef::Dense(x) => out
+            .par_chunks_mut(FRAME_BYTES)
+            .zip(x.par_chunks(STACKED_LEN))
+            .for_each(|(dst, stack)| quantise(&stack[(STACK - 1) * FRAME_LEN..], dst)),
+        GridsRef::Compact(b) => {
+            for (dst, stack) in out
+                .chunks_exact_mut(FRAME_BYTES)
+                .zip(b.chunks_exact(STACK_BYTES))
+            {
+                dst.copy_from_slice(&stack[(STACK - 1) * FRAME_BYTES..]);
+            }
         }
     }
-}
-
-/// The newest frame of each stacked observation in `grids` (`[n, 18, 20, 34]`),
-/// quantised into `out` (`n` × [`FRAME_BYTES`]).
-pub fn quantise_newest(grids: &[f32], out: &mut [u8]) {
-    use rayon::prelude::*;
-    out.par_chunks_mut(FRAME_BYTES)
-        .zip(grids.par_chunks(STACKED_LEN))
-        .for_each(|(dst, stack)| quantise(&stack[(STACK - 1) * FRAME_LEN..], dst));
 }
 
 /// A batch of quantised stacked observations: `n` × [`STACK_BYTES`] bytes,
@@ -109,36 +89,5 @@ impl CompactGrids {
     pub fn frame_mut(&mut self, s: usize, k: usize) -> &mut [u8] {
         let at = s * STACK_BYTES + k * FRAME_BYTES;
         &mut self.bytes[at..at + FRAME_BYTES]
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A frame with proximity 0.5 (→ 128/255 = 0.50196) and a fish (channel 1)
-    /// in cell 3, a net (channel 2) at proximity 1 in cell 700 − 20 = 680 − 1,
-    /// nothing elsewhere: two bytes per cell, rebuilt within 1/510.
-    #[test]
-    fn a_frame_round_trips() {
-        let mut f = vec![0.0f32; FRAME_LEN];
-        f[3] = 0.5;
-        f[CELLS + 3] = 1.0;
-        f[CELLS - 1] = 1.0;
-        f[2 * CELLS + CELLS - 1] = 1.0;
-        let mut b = vec![0u8; FRAME_BYTES];
-        quantise(&f, &mut b);
-        assert_eq!((b[3], b[CELLS + 3]), (128, 1));
-        assert_eq!((b[CELLS - 1], b[2 * CELLS - 1]), (255, 2));
-        assert_eq!(b.iter().filter(|&&x| x != 0).count(), 4);
-        let mut g = vec![9.0f32; FRAME_LEN];
-        dequantise(&b, &mut g);
-        assert!((g[3] - 128.0 / 255.0).abs() < 1e-7);
-        assert!((g[3] - 0.5).abs() <= PROXIMITY_TOLERANCE);
-        for k in 1..CHANNELS {
-            assert_eq!(g[k * CELLS + 3], (k == 1) as u8 as f32);
-            assert_eq!(g[k * CELLS + CELLS - 1], (k == 2) as u8 as f32);
-        }
-        assert_eq!(g.iter().filter(|&&x| x != 0.0).count(), 4);
     }
 }

@@ -6,7 +6,7 @@ use crate::error::Result;
 use crate::onnx::Metadata;
 use deepfoids_env::config::ActionTiming;
 use deepfoids_env::rng::{Purpose, Stream};
-use deepfoids_env::{Env, Policy, PolicyError};
+use deepfoids_env::{Env, GridFormat, GridsRef, Policy, PolicyError};
 use std::path::{Path, PathBuf};
 
 /// What keys the exploration noise of a batch's agents: agent `a` of a batch
@@ -34,14 +34,15 @@ impl NoiseKey {
 /// One behaviour's trained actor.
 pub trait Actor {
     /// Deterministic actions `[n, 3]` in [−1, 1] on the fused kernels
-    /// (`grids` `[n, 18, 20, 34]`, `vectors` `[n, 6]`).
-    fn deterministic(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32>;
+    /// (`grids` `[n, 18, 20, 34]` as floats or bytes, `vectors` `[n, 6]`).
+    fn deterministic(&self, grids: GridsRef<'_>, vectors: &[f32]) -> Vec<f32>;
 
-    /// The same on Burn's own layers (the benchmark's and the tests' reference).
+    /// The same on Burn's own layers from float grids (the benchmark's and
+    /// the tests' reference).
     fn deterministic_reference(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32>;
 
     /// Sampled actions, the noise of agent `a` from [`NoiseKey::stream`].
-    fn sample(&self, grids: &[f32], vectors: &[f32], key: NoiseKey) -> Vec<f32>;
+    fn sample(&self, grids: GridsRef<'_>, vectors: &[f32], key: NoiseKey) -> Vec<f32>;
 
     /// The actor as ONNX with ML-Agents' interface.
     fn onnx(&self, meta: &Metadata) -> Vec<u8>;
@@ -132,6 +133,11 @@ impl Policy for ActorPolicy {
         self.action_timing
     }
 
+    /// The fused kernels act on the sensor's bytes, conv 1 on their non-zeros.
+    fn grid_format(&self) -> Option<GridFormat> {
+        Some(GridFormat::Bytes)
+    }
+
     fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
         let out = env.output();
         for (b, batch) in out.behaviours.iter().enumerate() {
@@ -140,14 +146,14 @@ impl Policy for ActorPolicy {
             }
             let actor = &self.actors[b];
             actions[b] = if self.deterministic {
-                actor.deterministic(&batch.grids, &batch.vectors)
+                actor.deterministic(batch.observations(), &batch.vectors)
             } else {
                 let key = NoiseKey {
                     seed: self.seed,
                     first: batch.first,
                     tick: out.tick,
                 };
-                actor.sample(&batch.grids, &batch.vectors, key)
+                actor.sample(batch.observations(), &batch.vectors, key)
             };
         }
         Ok(())

@@ -1,6 +1,6 @@
 //! An exported policy driving scenes through tract (pure-Rust ONNX runtime).
 
-use deepfoids_env::{Env, Policy, PolicyError, VECTOR_OBS};
+use deepfoids_env::{Env, GridFormat, Policy, PolicyError, VECTOR_OBS};
 use deepfoids_sensors::{AZ_CELLS, EL_CELLS, STACKED_CHANNELS};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -174,13 +174,19 @@ impl Policy for OnnxPolicy {
             .map_or_else(|| "onnx".into(), |n| n.to_string_lossy().into_owned())
     }
 
+    /// The ONNX graph reads the grids as floats.
+    fn grid_format(&self) -> Option<GridFormat> {
+        Some(GridFormat::Floats)
+    }
+
     fn act(&mut self, env: &Env, actions: &mut [Vec<f32>]) -> Result<(), PolicyError> {
         for (b, batch) in env.output().behaviours.iter().enumerate() {
             if !env.awaiting(b) {
                 continue;
             }
+            let grids = batch.observations().to_dense();
             let a = self
-                .run(&batch.grids, &batch.vectors, batch.n_agents)
+                .run(&grids, &batch.vectors, batch.n_agents)
                 .map_err(|e| PolicyError::Inference(e.to_string()))?;
             actions[b].clear();
             actions[b].extend_from_slice(&a);

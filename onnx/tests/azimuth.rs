@@ -6,7 +6,7 @@
 
 use burn::module::Param;
 use burn::prelude::*;
-use deepfoids_env::VECTOR_OBS;
+use deepfoids_env::{GridsRef, VECTOR_OBS};
 use deepfoids_learn::kernels::geometry::{AZ_PAD, K1, K2, S1, S2};
 use deepfoids_learn::policy::Actor;
 use deepfoids_onnx::proto::ModelProto;
@@ -58,13 +58,13 @@ fn a_fish_in_every_azimuth_column_changes_the_actors_output() {
     let vectors = vec![0.1f32; VECTOR_OBS];
     let empty = grid_with_fish(None);
     let (base, base_ref) = (
-        actor.deterministic(&empty, &vectors),
+        actor.deterministic(GridsRef::Dense(&empty), &vectors),
         actor.deterministic_reference(&empty, &vectors),
     );
     for col in 0..AZ_CELLS {
         let g = grid_with_fish(Some(col));
         let (k, r) = (
-            actor.deterministic(&g, &vectors),
+            actor.deterministic(GridsRef::Dense(&g), &vectors),
             actor.deterministic_reference(&g, &vectors),
         );
         // A column outside every receptive field leaves the output bit-for-bit

@@ -5,7 +5,7 @@
 //! `target/onnx-check/` for `.ci/check_onnx.py` (onnx checker and onnxruntime).
 
 use burn::prelude::*;
-use deepfoids_env::VECTOR_OBS;
+use deepfoids_env::{GridsRef, VECTOR_OBS};
 use deepfoids_learn::policy::Actor;
 use deepfoids_learn::{BodyConfig, Grids};
 use deepfoids_onnx::{Metadata, OnnxPolicy};
@@ -126,7 +126,7 @@ fn tract_matches_the_burn_actor() {
         let worst = max_abs_diff(&got, &expected);
         eprintln!("tract vs Burn (kernels: {kernels}): max abs difference {worst:.2e} at batch 64");
         // The fused forward (acting) gives the same actions.
-        let fused = actor.deterministic(&grids, &vectors);
+        let fused = actor.deterministic(GridsRef::Dense(&grids), &vectors);
         let worst_fused = max_abs_diff(&fused, &expected);
         assert!(
             worst_fused <= 1e-4,
@@ -206,7 +206,8 @@ fn tract_matches_the_sac_actor() {
     let (mean, _) = actor.forward(&grid, v);
     let expected: Vec<f32> = mean.tanh().into_data().try_into_vec::<f32>().unwrap();
     // The fused forward (acting) gives the same actions.
-    let fused = deepfoids_sac::SacActor::new(actor.clone()).deterministic(&grids, &vectors);
+    let fused = deepfoids_sac::SacActor::new(actor.clone())
+        .deterministic(GridsRef::Dense(&grids), &vectors);
     let worst_fused = max_abs_diff(&fused, &expected);
     assert!(
         worst_fused <= 1e-4,

@@ -170,7 +170,7 @@ pub fn load_buffer(path: &Path) -> Result<Buffer> {
 mod tests {
     use super::*;
     use crate::gae::TERMINAL;
-    use deepfoids_sensors::STACKED_LEN;
+    use deepfoids_sensors::{GridsRef, STACKED_LEN};
 
     /// A stack whose three frames hold proximity `(i, i + 1, i + 2) / 100` in cell 0.
     fn stack(i: usize) -> Vec<f32> {
@@ -190,7 +190,7 @@ mod tests {
         let mut r = Rollout::new(2, 8);
         for (i, value) in [1.0, 2.0, 3.0, 8.0].into_iter().enumerate() {
             r.open[0].push(
-                &stack(i),
+                GridsRef::Dense(&stack(i)),
                 &[i as f32; VECTOR_OBS],
                 &[0.5; ACTIONS],
                 -1.0,
@@ -200,7 +200,13 @@ mod tests {
                 r.open[0].reward(i as f32 + 1.0, CONTINUE);
             }
         }
-        r.open[1].push(&stack(40), &[0.0; VECTOR_OBS], &[0.0; ACTIONS], -1.0, 0.0);
+        r.open[1].push(
+            GridsRef::Dense(&stack(40)),
+            &[0.0; VECTOR_OBS],
+            &[0.0; ACTIONS],
+            -1.0,
+            0.0,
+        );
         let newest_stack = {
             let mut s = vec![0u8; deepfoids_learn::frames::STACK_BYTES];
             r.open[0].stack_into(3, &mut s);
@@ -224,7 +230,13 @@ mod tests {
 
         // A terminated trajectory in the buffer too, then the file.
         let mut t = Trajectory::default();
-        t.push(&stack(7), &[1.0; VECTOR_OBS], &[0.1; ACTIONS], -2.0, 4.0);
+        t.push(
+            GridsRef::Dense(&stack(7)),
+            &[1.0; VECTOR_OBS],
+            &[0.1; ACTIONS],
+            -2.0,
+            4.0,
+        );
         t.reward(-300.0, TERMINAL);
         t.finish(0.0, 0.5, 1.0);
         r.buffer.push(t);

@@ -42,13 +42,13 @@ impl PpoActor {
     }
 
     /// The Gaussian's mean `[n, 3]` (fused forward).
-    pub fn mean(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
-        self.net.forward(GridsRef::Dense(grids), vectors).remove(0)
+    pub fn mean(&self, grids: GridsRef<'_>, vectors: &[f32]) -> Vec<f32> {
+        self.net.forward(grids, vectors).remove(0)
     }
 }
 
 impl Actor for PpoActor {
-    fn deterministic(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+    fn deterministic(&self, grids: GridsRef<'_>, vectors: &[f32]) -> Vec<f32> {
         self.mean(grids, vectors)
             .into_iter()
             .map(|x| x.clamp(-1.0, 1.0))
@@ -65,7 +65,7 @@ impl Actor for PpoActor {
         to_vec(mean.clamp(-1.0, 1.0))
     }
 
-    fn sample(&self, grids: &[f32], vectors: &[f32], key: NoiseKey) -> Vec<f32> {
+    fn sample(&self, grids: GridsRef<'_>, vectors: &[f32], key: NoiseKey) -> Vec<f32> {
         let mut out = self.mean(grids, vectors);
         for (a, act) in out.chunks_mut(ACTIONS).enumerate() {
             let mut noise = key.stream(a);

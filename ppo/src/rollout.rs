@@ -26,7 +26,7 @@ use crate::gae::gae;
 use deepfoids_env::VECTOR_OBS;
 use deepfoids_learn::ACTIONS;
 use deepfoids_learn::frames::{CompactGrids, FRAME_BYTES, STACK_BYTES, quantise};
-use deepfoids_sensors::{FRAME_LEN, STACK, STACKED_LEN};
+use deepfoids_sensors::{FRAME_LEN, GridsRef, STACK, STACKED_LEN};
 
 /// One agent's consecutive decisions.
 #[derive(Clone, Debug, Default)]
@@ -82,12 +82,12 @@ impl Trajectory {
         self.returns.clear();
     }
 
-    /// Append a step: its stacked observation `stack` (`[18, 20, 34]`; the
-    /// older frames are kept only for the first step), vector, action (the
-    /// unclipped sample), log-probability and value.
+    /// Append a step: its stacked observation `stack` (one stack, floats
+    /// `[18, 20, 34]` or bytes; the older frames are kept only for the first
+    /// step), vector, action (the unclipped sample), log-probability and value.
     pub fn push(
         &mut self,
-        stack: &[f32],
+        stack: GridsRef<'_>,
         vector: &[f32],
         action: &[f32],
         logprob: f32,
@@ -95,12 +95,19 @@ impl Trajectory {
     ) {
         let first = if self.is_empty() { 0 } else { STACK - 1 };
         for k in first..STACK {
-            let at = self.frames.len();
-            self.frames.resize(at + FRAME_BYTES, 0);
-            quantise(
-                &stack[k * FRAME_LEN..(k + 1) * FRAME_LEN],
-                &mut self.frames[at..],
-            );
+            match stack {
+                GridsRef::Dense(x) => {
+                    let at = self.frames.len();
+                    self.frames.resize(at + FRAME_BYTES, 0);
+                    quantise(
+                        &x[k * FRAME_LEN..(k + 1) * FRAME_LEN],
+                        &mut self.frames[at..],
+                    );
+                }
+                GridsRef::Compact(b) => self
+                    .frames
+                    .extend_from_slice(&b[k * FRAME_BYTES..(k + 1) * FRAME_BYTES]),
+            }
         }
         self.vectors.extend_from_slice(vector);
         self.actions.extend_from_slice(action);
@@ -311,9 +318,12 @@ impl Rollout {
     }
 }
 
-/// A dense stacked observation `[18, 20, 34]` of agent `a` in a batch.
-pub fn stack_of(grids: &[f32], a: usize) -> &[f32] {
-    &grids[a * STACKED_LEN..(a + 1) * STACKED_LEN]
+/// The stacked observation of agent `a` in a batch, in the batch's format.
+pub fn stack_of(grids: GridsRef<'_>, a: usize) -> GridsRef<'_> {
+    match grids {
+        GridsRef::Dense(x) => GridsRef::Dense(&x[a * STACKED_LEN..(a + 1) * STACKED_LEN]),
+        GridsRef::Compact(b) => GridsRef::Compact(&b[a * STACK_BYTES..(a + 1) * STACK_BYTES]),
+    }
 }
 
 #[cfg(test)]
@@ -354,7 +364,7 @@ mod tests {
         let mut t = Trajectory::default();
         for s in 0..3 {
             t.push(
-                &stack(s),
+                GridsRef::Dense(&stack(s)),
                 &[0.0; VECTOR_OBS],
                 &[0.0; ACTIONS],
                 0.0,
@@ -373,6 +383,20 @@ mod tests {
             assert_eq!(got, want, "step {s}");
         }
         assert_eq!(t.last_stop(), Some(BOOTSTRAP));
+        // The same steps handed over as the sensor's bytes store the same frames.
+        let mut b = Trajectory::default();
+        for s in 0..3 {
+            let mut bytes = vec![0u8; STACK_BYTES];
+            t.stack_into(s, &mut bytes);
+            b.push(
+                GridsRef::Compact(&bytes),
+                &[0.0; VECTOR_OBS],
+                &[0.0; ACTIONS],
+                0.0,
+                0.0,
+            );
+        }
+        assert_eq!(b.frames, t.frames);
         t.finish(2.0, 0.9, 0.5);
         for (a, w) in t.advantages.iter().zip([3.12575f32, 3.835, 3.3]) {
             assert!((a - w).abs() < 1e-5, "{:?}", t.advantages);

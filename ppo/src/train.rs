@@ -53,7 +53,6 @@ use deepfoids_learn::checkpoint::{
 };
 use deepfoids_learn::driver::{BufferMemory, Learner, LearnerCtx, StepCtx, Trainer};
 use deepfoids_learn::frames::FRAME_BYTES;
-use deepfoids_learn::kernels::encoder::GridsRef;
 use deepfoids_learn::kernels::infer::InferNet;
 use deepfoids_learn::logger::Scalars;
 use deepfoids_learn::onnx::Metadata;
@@ -447,9 +446,7 @@ impl PpoLearner {
     /// `actions`.
     fn policy(&self, batch: &BehaviourBatch, actions: &mut [f32], ctx: &mut StepCtx<'_>) -> Acted {
         let t0 = Instant::now();
-        let mut out = self
-            .net
-            .forward(GridsRef::Dense(&batch.grids), &batch.vectors);
+        let mut out = self.net.forward(batch.observations(), &batch.vectors);
         let values = out.pop().expect("the critic's output");
         let mean = out.pop().expect("the actor's output");
         let mut sampled = vec![0.0f32; self.n * ACTIONS];
@@ -485,7 +482,7 @@ impl PpoLearner {
                 &acted.sampled[r.clone()],
             );
             self.rollout.open[a].push(
-                stack_of(&batch.grids, a),
+                stack_of(batch.observations(), a),
                 &batch.vectors[a * VECTOR_OBS..(a + 1) * VECTOR_OBS],
                 &acted.sampled[r],
                 lp,

@@ -348,7 +348,7 @@ fn three_species_from_three_runs_and_budgets_per_behaviour() {
         let st = RunState::load(&fin).unwrap();
         let actor = load_actor(&fin, &st, &st.behaviours[0]).unwrap();
         let batch = &env.output().behaviours[b];
-        let want = actor.deterministic(&batch.grids, &batch.vectors);
+        let want = actor.deterministic(batch.observations(), &batch.vectors);
         assert_eq!(got[b], want, "behaviour {b} acts as {}", parent.display());
     }
 }

@@ -42,13 +42,13 @@ impl SacActor {
     }
 
     /// The mean and raw log-std `[n, 6]` (fused forward).
-    fn heads(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
-        self.net.forward(GridsRef::Dense(grids), vectors).remove(0)
+    fn heads(&self, grids: GridsRef<'_>, vectors: &[f32]) -> Vec<f32> {
+        self.net.forward(grids, vectors).remove(0)
     }
 }
 
 impl Actor for SacActor {
-    fn deterministic(&self, grids: &[f32], vectors: &[f32]) -> Vec<f32> {
+    fn deterministic(&self, grids: GridsRef<'_>, vectors: &[f32]) -> Vec<f32> {
         self.heads(grids, vectors)
             .chunks_exact(2 * ACTIONS)
             .flat_map(|row| row[..ACTIONS].iter().map(|x| x.tanh()))
@@ -65,7 +65,7 @@ impl Actor for SacActor {
         to_vec(mean.tanh())
     }
 
-    fn sample(&self, grids: &[f32], vectors: &[f32], key: NoiseKey) -> Vec<f32> {
+    fn sample(&self, grids: GridsRef<'_>, vectors: &[f32], key: NoiseKey) -> Vec<f32> {
         let heads = self.heads(grids, vectors);
         let mut out = vec![0.0; heads.len() / 2];
         squash_heads(&heads, key, |x| self.actor.squash_log_std(x), &mut out);

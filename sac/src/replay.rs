@@ -35,11 +35,9 @@
 
 use deepfoids_env::VECTOR_OBS;
 use deepfoids_learn::ACTIONS;
-use deepfoids_learn::frames::{
-    CompactGrids, FRAME_BYTES, STACK_BYTES, dequantise, quantise_newest,
-};
+use deepfoids_learn::frames::{CompactGrids, FRAME_BYTES, STACK_BYTES, dequantise, newest_frames};
 use deepfoids_learn::{LearnError, Result};
-use deepfoids_sensors::{FRAME_LEN, STACK, STACKED_LEN};
+use deepfoids_sensors::{FRAME_LEN, GridsRef, STACK};
 use rayon::prelude::*;
 use std::io::{Read, Write};
 use std::path::Path;
@@ -169,21 +167,21 @@ impl Replay {
 
     /// Append the observations of a decision and the actions taken.
     ///
-    /// `grids` are the stacked observations `[agents, 18, 20, 34]` (only each
-    /// stack's newest frame is stored), `history[a]` how many of the two older
+    /// `grids` are the stacked observations of the agents, floats or the
+    /// sensor's bytes (only each stack's newest frame is stored), `history[a]` how many of the two older
     /// frames of agent `a`'s stack are real (0 after a reset or a respawn).
     /// `continues` says whether this decision follows the previous row in the
     /// same environment (false after a reset, e.g. on resume).
     pub fn push(
         &mut self,
-        grids: &[f32],
+        grids: GridsRef<'_>,
         vectors: &[f32],
         actions: &[f32],
         history: &[u8],
         continues: bool,
     ) {
         let n = self.agents;
-        debug_assert_eq!(grids.len(), n * STACKED_LEN);
+        debug_assert_eq!(grids.len(), n);
         if self.head > 0 {
             let prev = self.slot(self.head - 1);
             self.linked[prev] = continues && self.rewarded[prev];
@@ -192,7 +190,7 @@ impl Replay {
         self.rewarded[s] = false;
         self.linked[s] = false;
         let at = s * n;
-        quantise_newest(
+        newest_frames(
             grids,
             &mut self.frames[at * FRAME_BYTES..(at + n) * FRAME_BYTES],
         );
@@ -413,6 +411,7 @@ impl Replay {
 mod tests {
     use super::*;
     use deepfoids_sensors::CELLS;
+    use deepfoids_sensors::STACKED_LEN;
 
     /// A stack whose newest frame encodes `(row, agent)`: proximity `(r + a)/100`
     /// in cell 0, type `1 + (r + a) % 5` there; the older frames are arbitrary.
@@ -433,7 +432,13 @@ mod tests {
             .map(|i| (r * 10) as f32 + i as f32)
             .collect();
         let actions = vec![r as f32; n * ACTIONS];
-        buf.push(&grids, &vectors, &actions, &vec![hist; n], continues);
+        buf.push(
+            GridsRef::Dense(&grids),
+            &vectors,
+            &actions,
+            &vec![hist; n],
+            continues,
+        );
     }
 
     #[test]

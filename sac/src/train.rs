@@ -493,13 +493,13 @@ impl SacLearner {
         let t0 = Instant::now();
         let out = self
             .actor_net
-            .forward(GridsRef::Dense(&batch.grids), &batch.vectors)
+            .forward(batch.observations(), &batch.vectors)
             .remove(0);
         self.squash(&out, actions, ctx.seed, ctx.tick);
         ctx.timing.inference += t0.elapsed();
         if ctx.training || last {
             self.replay.push(
-                &batch.grids,
+                batch.observations(),
                 &batch.vectors,
                 actions,
                 &self.history,

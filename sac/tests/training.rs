@@ -83,7 +83,7 @@ fn rebuilt_observations_equal_the_environments() {
     let mut history = vec![0u8; n];
     let mut originals: Vec<Vec<f32>> = vec![env.output().behaviours[0].grids.clone()];
     replay.push(
-        &env.output().behaviours[0].grids,
+        env.output().behaviours[0].observations(),
         &env.output().behaviours[0].vectors,
         &actions[0],
         &history,
@@ -103,7 +103,13 @@ fn rebuilt_observations_equal_the_environments() {
             respawns += t as usize;
         }
         originals.push(batch.grids.clone());
-        replay.push(&batch.grids, &batch.vectors, &actions[0], &history, true);
+        replay.push(
+            batch.observations(),
+            &batch.vectors,
+            &actions[0],
+            &history,
+            true,
+        );
     }
     assert!(
         respawns >= 3,

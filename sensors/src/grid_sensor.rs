@@ -22,6 +22,7 @@
 //!   fish still shows); its distance is the centre distance;
 //! * boundaries and obstacles are found by casting each cell's centre ray.
 
+use crate::frames::{FRAME_BYTES, FrameCell, proximity_byte};
 use crate::geometry::{BoundaryKind, Obstacle};
 use glam::{Mat3, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI};
@@ -521,20 +522,35 @@ impl Frame {
             }
         }
     }
+
+    /// Write the frame as [`FRAME_BYTES`] bytes into `out`: the proximities as
+    /// bytes, then the kinds; the same bytes as [`quantise`] of [`Frame::write`].
+    pub fn write_bytes(&self, out: &mut [u8]) {
+        let (prox, kinds) = out[..FRAME_BYTES].split_at_mut(CELLS);
+        let inv = 1.0 / self.range;
+        for ((p, &k), &d) in prox.iter_mut().zip(&self.kind).zip(&self.dist) {
+            *p = if k != 0 {
+                proximity_byte(1.0 - d * inv)
+            } else {
+                0
+            };
+        }
+        kinds.copy_from_slice(&self.kind);
+    }
 }
 
-/// Shift a stacked observation (`[18, 20, 34]`) one frame older and return the
-/// slot of the newest frame for the caller to write.
-pub fn push_frame(stack: &mut [f32]) -> &mut [f32] {
-    stack.copy_within(FRAME_LEN..STACKED_LEN, 0);
-    &mut stack[(STACK - 1) * FRAME_LEN..STACKED_LEN]
+/// Shift a stacked observation (`[18, 20, 34]` floats, or 3 frames of bytes)
+/// one frame older and return the slot of the newest frame for the caller to write.
+pub fn push_frame<T: FrameCell>(stack: &mut [T]) -> &mut [T] {
+    stack.copy_within(T::FRAME..STACK * T::FRAME, 0);
+    &mut stack[(STACK - 1) * T::FRAME..STACK * T::FRAME]
 }
 
 /// Clear the history of a stacked observation (a new episode): the older
 /// frames become zeros; returns the newest frame's slot.
-pub fn reset_stack(stack: &mut [f32]) -> &mut [f32] {
-    stack[..(STACK - 1) * FRAME_LEN].fill(0.0);
-    &mut stack[(STACK - 1) * FRAME_LEN..STACKED_LEN]
+pub fn reset_stack<T: FrameCell>(stack: &mut [T]) -> &mut [T] {
+    stack[..(STACK - 1) * T::FRAME].fill(T::default());
+    &mut stack[(STACK - 1) * T::FRAME..STACK * T::FRAME]
 }
 
 #[cfg(test)]
@@ -732,6 +748,54 @@ mod tests {
             (stack[0], stack[FRAME_LEN], stack[2 * FRAME_LEN]),
             (0.0, 0.0, 9.0)
         );
+    }
+
+    /// The byte stacks shift the same way, a frame being 1,360 bytes.
+    #[test]
+    fn byte_stacks_shift_by_frame_bytes() {
+        let mut stack = vec![0u8; STACK * FRAME_BYTES];
+        for value in 1..=4u8 {
+            push_frame(&mut stack).fill(value);
+        }
+        assert_eq!(
+            (stack[0], stack[FRAME_BYTES], stack[2 * FRAME_BYTES]),
+            (2, 3, 4)
+        );
+        reset_stack(&mut stack).fill(9);
+        assert_eq!(
+            (stack[0], stack[FRAME_BYTES - 1], stack[2 * FRAME_BYTES]),
+            (0, 0, 9)
+        );
+    }
+
+    /// A fish, a nearer chase partner, a net 2 m ahead and the surface in a
+    /// 3 m frame: the bytes written directly are the floats quantised.
+    #[test]
+    fn byte_frames_are_the_quantised_floats() {
+        let sensor = GridSensor::new();
+        let mut f = Frame::new(3.0);
+        f.add_plane(&sensor, -Vec3::Z, 2.0, SeenKind::Net);
+        f.add_sphere(&sensor, Vec3::new(0.3, 0.0, 1.0), 0.15, SeenKind::Fish);
+        f.add_sphere(
+            &sensor,
+            Vec3::new(-0.3, 0.1, 0.6),
+            0.1,
+            SeenKind::ChasePartner,
+        );
+        f.add_plane(&sensor, -Vec3::Y, 0.5, SeenKind::Surface);
+        let mut floats = vec![0.0; FRAME_LEN];
+        f.write(&mut floats);
+        let mut expected = vec![0u8; FRAME_BYTES];
+        crate::frames::quantise(&floats, &mut expected);
+        let mut bytes = vec![7u8; FRAME_BYTES];
+        f.write_bytes(&mut bytes);
+        assert_eq!(bytes, expected);
+        // Cell (9, 16)'s centre ray (−5°, +4.5°) meets the net 2 m ahead at
+        // 2 / (cos 5° cos 4.5°) = 2.0139 m: 1 − 2.0139/3 = 0.3287 → round(83.8) = 84.
+        let c = 9 * AZ_CELLS + 16;
+        assert_eq!((bytes[c], bytes[CELLS + c]), (84, SeenKind::Net as u8));
+        assert!(bytes[CELLS..].contains(&(SeenKind::ChasePartner as u8)));
+        assert!(bytes[CELLS..].contains(&(SeenKind::Fish as u8)));
     }
 
     /// Drawn nearest first, a batch still gives each cell the nearest sphere

@@ -3,12 +3,15 @@
 //! spatial grid to find neighbours.
 //!
 //! This crate knows nothing of fish dynamics or learning; it takes positions,
-//! orientations and shapes and writes flat `f32` buffers.
+//! orientations and shapes and writes flat `f32` buffers, or the same frames
+//! as bytes ([`frames`]).
 
+pub mod frames;
 pub mod geometry;
 pub mod grid_sensor;
 pub mod spatial;
 
+pub use frames::{FRAME_BYTES, FrameCell, GridFormat, GridsRef, STACK_BYTES};
 pub use geometry::{Boundary, BoundaryKind, Obstacle, Plane};
 pub use grid_sensor::{
     AZ_CELLS, CELLS, CHANNELS, Channel, EL_CELLS, FRAME_LEN, Frame, GridSensor, SPHERE_BATCH,

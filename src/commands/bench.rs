@@ -73,6 +73,17 @@ pub struct BenchEnvArgs {
     pub warmup: f64,
     #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
+    /// How the sensor hands out the grids: `bytes` (what training and the
+    /// trained policies use) or `floats` (the Python environment, ONNX)
+    #[arg(long, value_enum, default_value_t = Grids::Bytes)]
+    pub grids: Grids,
+}
+
+/// How `bench env`'s sensor hands out the grids.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum Grids {
+    Bytes,
+    Floats,
 }
 
 fn parse_rollout(s: &str) -> Result<Rollout, String> {
@@ -87,7 +98,18 @@ fn parse_rollout(s: &str) -> Result<Rollout, String> {
 
 /// `deepfoids bench env`.
 pub fn env(dirs: &ConfigDirs, args: &BenchEnvArgs) -> Result<()> {
-    bench::env(dirs, &args.scene, args.seconds, args.warmup, args.seed)
+    let format = match args.grids {
+        Grids::Bytes => deepfoids_env::GridFormat::Bytes,
+        Grids::Floats => deepfoids_env::GridFormat::Floats,
+    };
+    bench::env(
+        dirs,
+        &args.scene,
+        args.seconds,
+        args.warmup,
+        args.seed,
+        format,
+    )
 }
 
 /// `deepfoids bench train`.

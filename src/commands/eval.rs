@@ -4,7 +4,7 @@ use crate::args::{PolicyArgs, SceneArgs, rerun};
 use anyhow::Result;
 use clap::Args;
 use deepfoids_env::limits::MAX_FPS;
-use deepfoids_env::{ConfigDirs, Env};
+use deepfoids_env::{ConfigDirs, Env, GridFormat};
 use deepfoids_experiments::evaluate::{EvalMeta, evaluate, print_table, write_outputs};
 use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
 use deepfoids_replay::EnvRecorder;
@@ -40,7 +40,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     bounds::positive_at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
-    let mut env = Env::new(scene, sa.seed);
+    let mut env = Env::with_grid_format(scene, sa.seed, GridFormat::Bytes);
     let mut policy = make_policy(dirs, &policy_name, sa.seed, &env, &policy_args.options())?;
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(

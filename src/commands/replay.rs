@@ -19,7 +19,7 @@ use clap::Args;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::memory;
-use deepfoids_env::{ConfigDirs, Env, Phase};
+use deepfoids_env::{ConfigDirs, Env, GridFormat, Phase};
 use deepfoids_experiments::evaluate::{Evaluation, RunArgs, evaluate};
 use deepfoids_experiments::replays::{
     MIN_CSV_ROW, PAGE_BYTES_PER_FISH_FRAME, bytes, check_pm, check_recording, curves, describe,
@@ -126,7 +126,7 @@ fn simulate(
 ) -> Result<(Recording, Evaluation)> {
     let (sa, opts) = from_rerun(run)?;
     let scene = load_scene(dirs, &sa.scene, sa.phase)?;
-    let mut env = Env::new(scene, sa.seed);
+    let mut env = Env::with_grid_format(scene, sa.seed, GridFormat::Bytes);
     check_recording(&env, run.seconds, fps)?;
     let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts.options())?;
     let info = info(&env, &policy.name(), source, vec![]);

@@ -6,7 +6,7 @@ use crate::args::{PolicyArgs, SceneArgs, rerun};
 use anyhow::Result;
 use clap::Args;
 use deepfoids_env::reward::TERM_SYMBOLS;
-use deepfoids_env::{ConfigDirs, Env};
+use deepfoids_env::{ConfigDirs, Env, GridFormat};
 use deepfoids_experiments::simulate::{Simulated, simulate_to_csv};
 use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
 use deepfoids_io::write_atomic;
@@ -37,7 +37,7 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
         .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
     bounds::out_dir("--out", &out_dir)?;
     let _lock = lock_dir(&out_dir)?;
-    let mut env = Env::new(scene, sa.seed);
+    let mut env = Env::with_grid_format(scene, sa.seed, GridFormat::Bytes);
     let mut policy = make_policy(dirs, &policy_name, sa.seed, &env, &policy_args.options())?;
     let csv_path = out_dir.join("trajectories.csv");
     let Simulated {

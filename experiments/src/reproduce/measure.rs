@@ -7,7 +7,7 @@ use crate::evaluate::{EvalMeta, RunArgs, evaluate, write_outputs};
 use anyhow::{Context, Result};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::world::Chase;
-use deepfoids_env::{ConfigDirs, Env, Phase};
+use deepfoids_env::{ConfigDirs, Env, GridFormat, Phase};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -296,7 +296,7 @@ pub fn measure_one(
     }
     let scene = crate::load_scene(dirs, scene_id, phase)?;
     let env_seed = ENV_SEED_BASE + 1000 * es + ts;
-    let mut env = Env::new(scene, env_seed);
+    let mut env = Env::with_grid_format(scene, env_seed, GridFormat::Bytes);
     let mut pol: Box<dyn deepfoids_env::Policy> = match &policy_path {
         Some(d) => Box::new(crate::load_trained(
             d,

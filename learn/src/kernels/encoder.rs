@@ -82,7 +82,7 @@ impl Patches {
     fn of(&mut self, grids: GridsRef<'_>, first: usize, s: usize) -> &[f32] {
         let (xp, cols) = self.buffers();
         for t in 0..s {
-            grids.expand(first + t, xp);
+            super::grids::expand(grids, first + t, xp);
             im2col1(xp, &mut cols[t * P1 * PATCH1..(t + 1) * P1 * PATCH1]);
         }
         &cols[..s * P1 * PATCH1]

@@ -1,0 +1,163 @@
+//! Frames as bytes: the sensor's compact output, which the policies act on and
+//! the experience buffers store.
+//!
+//! A frame is `[proximity, fish, net, surface, obstacle, chase partner]` over
+//! 20 × 34 cells; the five type channels are one-hot (or all zero where nothing
+//! is seen), so a cell takes two bytes: the proximity as `round(255·p)` (error
+//! ≤ 1/510) and the index of the hot channel (0 for none), rebuilt exactly.
+//! A frame is [`FRAME_BYTES`] = 1,360 bytes: 680 proximity bytes, then 680
+//! type bytes. A stacked observation (3 frames, oldest first) is 4,080 bytes
+//! against 48,960 as floats; a frame missing from a stack (the two older
+//! frames after a respawn, SPEC §7) is all zero bytes, which rebuilds as zeros.
+
+use crate::grid_sensor::{CELLS, CHANNELS, FRAME_LEN, STACK, STACKED_LEN};
+
+/// Bytes of one quantised frame.
+pub const FRAME_BYTES: usize = 2 * CELLS;
+/// Bytes of one quantised stacked observation.
+pub const STACK_BYTES: usize = STACK * FRAME_BYTES;
+/// Largest error of a rebuilt proximity value: 1/510, plus f32 rounding.
+pub const PROXIMITY_TOLERANCE: f32 = 0.5 / 255.0 + 1e-6;
+
+/// A proximity in [0, 1] as its byte.
+#[inline]
+pub fn proximity_byte(p: f32) -> u8 {
+    (p.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// Frame `[6, 20, 34]` floats → [`FRAME_BYTES`] bytes.
+pub fn quantise(frame: &[f32], out: &mut [u8]) {
+    debug_assert_eq!(frame.len(), FRAME_LEN);
+    let (prox, kind) = out.split_at_mut(CELLS);
+    for c in 0..CELLS {
+        prox[c] = proximity_byte(frame[c]);
+        kind[c] = (1..CHANNELS)
+            .find(|&k| frame[k * CELLS + c] > 0.5)
+            .unwrap_or(0) as u8;
+    }
+}
+
+/// [`FRAME_BYTES`] bytes → frame `[6, 20, 34]` floats.
+pub fn dequantise(bytes: &[u8], frame: &mut [f32]) {
+    let (prox, kind) = bytes.split_at(CELLS);
+    let (p, types) = frame.split_at_mut(CELLS);
+    for (dst, &q) in p.iter_mut().zip(prox) {
+        *dst = q as f32 * (1.0 / 255.0);
+    }
+    for (k, channel) in types.chunks_exact_mut(CELLS).enumerate() {
+        let k = k as u8 + 1;
+        for (v, &kd) in channel.iter_mut().zip(kind) {
+            *v = (kd == k) as u8 as f32;
+        }
+    }
+}
+
+/// How an environment hands out its stacked grids.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GridFormat {
+    /// `[n, 18, 20, 34]` floats (what ML-Agents hands out; Python, ONNX).
+    #[default]
+    Floats,
+    /// `n` stacks of 3 frames of [`FRAME_BYTES`] bytes: 12× smaller, and what
+    /// the fused kernels act on without expanding the zeros.
+    Bytes,
+}
+
+/// A batch of stacked grids in either format, as the policies read them.
+#[derive(Clone, Copy, Debug)]
+pub enum GridsRef<'a> {
+    /// `[n, 18, 20, 34]` floats.
+    Dense(&'a [f32]),
+    /// `n` stacks of 3 quantised frames, [`STACK_BYTES`] bytes each.
+    Compact(&'a [u8]),
+}
+
+impl<'a> GridsRef<'a> {
+    /// Observations in the batch.
+    pub fn len(&self) -> usize {
+        match self {
+            GridsRef::Dense(x) => x.len() / STACKED_LEN,
+            GridsRef::Compact(x) => x.len() / STACK_BYTES,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The batch as floats `[n, 18, 20, 34]` (rebuilt from bytes, or borrowed).
+    pub fn to_dense(self) -> std::borrow::Cow<'a, [f32]> {
+        match self {
+            GridsRef::Dense(x) => std::borrow::Cow::Borrowed(x),
+            GridsRef::Compact(bytes) => {
+                let mut out = vec![0.0; self.len() * STACKED_LEN];
+                for (src, dst) in bytes
+                    .chunks_exact(FRAME_BYTES)
+                    .zip(out.chunks_exact_mut(FRAME_LEN))
+                {
+                    dequantise(src, dst);
+                }
+                std::borrow::Cow::Owned(out)
+            }
+        }
+    }
+}
+
+/// What a stacked observation is made of: floats (a frame is [`FRAME_LEN`]
+/// of them) or bytes (a frame is [`FRAME_BYTES`]).
+pub trait FrameCell: Copy + Default + Send + Sync + 'static {
+    /// Cells of one frame in this format.
+    const FRAME: usize;
+    /// Write `frame` into `out` (one frame's length).
+    fn write(frame: &crate::Frame, out: &mut [Self]);
+}
+
+impl FrameCell for f32 {
+    const FRAME: usize = FRAME_LEN;
+    fn write(frame: &crate::Frame, out: &mut [f32]) {
+        frame.write(out)
+    }
+}
+
+impl FrameCell for u8 {
+    const FRAME: usize = FRAME_BYTES;
+    fn write(frame: &crate::Frame, out: &mut [u8]) {
+        frame.write_bytes(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A frame with proximity 0.5 (→ 128/255 = 0.50196) and a fish (channel 1)
+    /// in cell 3, a net (channel 2) at proximity 1 in cell 680 − 1, nothing
+    /// elsewhere: two bytes per cell, rebuilt within 1/510.
+    #[test]
+    fn a_frame_round_trips() {
+        let mut f = vec![0.0f32; FRAME_LEN];
+        f[3] = 0.5;
+        f[CELLS + 3] = 1.0;
+        f[CELLS - 1] = 1.0;
+        f[2 * CELLS + CELLS - 1] = 1.0;
+        let mut b = vec![0u8; FRAME_BYTES];
+        quantise(&f, &mut b);
+        assert_eq!((b[3], b[CELLS + 3]), (128, 1));
+        assert_eq!((b[CELLS - 1], b[2 * CELLS - 1]), (255, 2));
+        assert_eq!(b.iter().filter(|&&x| x != 0).count(), 4);
+        let mut g = vec![9.0f32; FRAME_LEN];
+        dequantise(&b, &mut g);
+        assert!((g[3] - 128.0 / 255.0).abs() < 1e-7);
+        assert!((g[3] - 0.5).abs() <= PROXIMITY_TOLERANCE);
+        for k in 1..CHANNELS {
+            assert_eq!(g[k * CELLS + 3], (k == 1) as u8 as f32);
+            assert_eq!(g[k * CELLS + CELLS - 1], (k == 2) as u8 as f32);
+        }
+        assert_eq!(g.iter().filter(|&&x| x != 0.0).count(), 4);
+        let stack = [b.clone(), b.clone(), b].concat();
+        let grids = GridsRef::Compact(&stack);
+        assert_eq!(grids.len(), 1);
+        let dense = grids.to_dense();
+        assert_eq!(&dense[2 * FRAME_LEN..], &g[..]);
+    }
+}
