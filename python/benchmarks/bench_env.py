@@ -1,7 +1,8 @@
 """Agent-decisions per second of the Python APIs beside `deepfoids bench env`.
 
 Runs, interleaved in one process tree so machine load hits all alike:
-  1. `deepfoids bench env` (the Rust binary; random actions drawn in Rust),
+  1. `deepfoids bench env --grids floats` (the Rust binary; random actions drawn
+     in Rust; float grids, as Python gets them),
   2. `deepfoids.BatchEnv` with numpy random actions,
   3. the PettingZoo dict API (`deepfoids.parallel_env`) with the same actions,
 for `--rounds` rounds, and prints each rate, the medians, and the ratios
@@ -25,7 +26,8 @@ import deepfoids
 
 def bench_binary(binary: str, scene: str, seconds: float, warmup: float) -> float:
     out = subprocess.run(
-        [binary, "bench", "env", "--scene", scene, "--seconds", str(seconds), "--warmup", str(warmup)],
+        [binary, "bench", "env", "--scene", scene, "--seconds", str(seconds), "--warmup", str(warmup),
+         "--grids", "floats"],
         check=True,
         capture_output=True,
         text=True,
