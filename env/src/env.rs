@@ -76,7 +76,6 @@ use crate::state::State;
 use crate::sun::SunPlace;
 use crate::traits::{self, FishParams, Traits};
 use crate::world::{Chase, World};
-use deepfoids_sensors::frames::{dequantise, quantise};
 use deepfoids_sensors::{
     FRAME_BYTES, FRAME_LEN, Frame, FrameCell, GridFormat, GridSensor, GridsRef, Obstacle, STACK,
     STACK_BYTES, STACKED_LEN, SpatialGrid, push_frame, reset_stack,
@@ -172,25 +171,11 @@ impl BehaviourBatch {
     fn convert(&mut self, format: GridFormat) {
         match format {
             GridFormat::Bytes if self.frames.is_empty() => {
-                self.frames = vec![0; self.n_agents * STACK_BYTES];
-                for (src, dst) in self
-                    .grids
-                    .chunks_exact(FRAME_LEN)
-                    .zip(self.frames.chunks_exact_mut(FRAME_BYTES))
-                {
-                    quantise(src, dst);
-                }
+                self.frames = GridsRef::Dense(&self.grids).to_bytes().into_owned();
                 self.grids = Vec::new();
             }
             GridFormat::Floats if self.grids.is_empty() => {
-                self.grids = vec![0.0; self.n_agents * STACKED_LEN];
-                for (src, dst) in self
-                    .frames
-                    .chunks_exact(FRAME_BYTES)
-                    .zip(self.grids.chunks_exact_mut(FRAME_LEN))
-                {
-                    dequantise(src, dst);
-                }
+                self.grids = GridsRef::Compact(&self.frames).to_dense().into_owned();
                 self.frames = Vec::new();
             }
             _ => {}

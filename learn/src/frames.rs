@@ -60,29 +60,14 @@ impl CompactGrids {
 
     /// Quantise every frame of dense stacked grids `[n, 18, 20, 34]`.
     pub fn from_dense(grids: &[f32]) -> Self {
-        let n = grids.len() / STACKED_LEN;
-        let mut out = Self::with_len(n);
-        for (dst, src) in out
-            .bytes
-            .chunks_exact_mut(FRAME_BYTES)
-            .zip(grids.chunks_exact(FRAME_LEN))
-        {
-            quantise(src, dst);
+        Self {
+            bytes: GridsRef::Dense(grids).to_bytes().into_owned(),
         }
-        out
     }
 
     /// The stacks as floats `[n, 18, 20, 34]`.
     pub fn to_dense(&self) -> Vec<f32> {
-        let mut out = vec![0.0; self.len() * STACKED_LEN];
-        for (src, dst) in self
-            .bytes
-            .chunks_exact(FRAME_BYTES)
-            .zip(out.chunks_exact_mut(FRAME_LEN))
-        {
-            dequantise(src, dst);
-        }
-        out
+        GridsRef::Compact(&self.bytes).to_dense().into_owned()
     }
 
     /// Frame `k` (0 = oldest) of observation `s`.

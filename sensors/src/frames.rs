@@ -11,6 +11,7 @@
 //! frames after a respawn, SPEC §7) is all zero bytes, which rebuilds as zeros.
 
 use crate::grid_sensor::{CELLS, CHANNELS, FRAME_LEN, STACK, STACKED_LEN};
+use std::borrow::Cow;
 
 /// Bytes of one quantised frame.
 pub const FRAME_BYTES: usize = 2 * CELLS;
@@ -86,9 +87,9 @@ impl<'a> GridsRef<'a> {
     }
 
     /// The batch as floats `[n, 18, 20, 34]` (rebuilt from bytes, or borrowed).
-    pub fn to_dense(self) -> std::borrow::Cow<'a, [f32]> {
+    pub fn to_dense(self) -> Cow<'a, [f32]> {
         match self {
-            GridsRef::Dense(x) => std::borrow::Cow::Borrowed(x),
+            GridsRef::Dense(x) => Cow::Borrowed(x),
             GridsRef::Compact(bytes) => {
                 let mut out = vec![0.0; self.len() * STACKED_LEN];
                 for (src, dst) in bytes
@@ -97,7 +98,24 @@ impl<'a> GridsRef<'a> {
                 {
                     dequantise(src, dst);
                 }
-                std::borrow::Cow::Owned(out)
+                Cow::Owned(out)
+            }
+        }
+    }
+
+    /// The batch as bytes, `n` × [`STACK_BYTES`] (quantised from floats, or borrowed).
+    pub fn to_bytes(self) -> Cow<'a, [u8]> {
+        match self {
+            GridsRef::Compact(bytes) => Cow::Borrowed(bytes),
+            GridsRef::Dense(x) => {
+                let mut out = vec![0; self.len() * STACK_BYTES];
+                for (src, dst) in x
+                    .chunks_exact(FRAME_LEN)
+                    .zip(out.chunks_exact_mut(FRAME_BYTES))
+                {
+                    quantise(src, dst);
+                }
+                Cow::Owned(out)
             }
         }
     }
@@ -159,5 +177,6 @@ mod tests {
         assert_eq!(grids.len(), 1);
         let dense = grids.to_dense();
         assert_eq!(&dense[2 * FRAME_LEN..], &g[..]);
+        assert_eq!(GridsRef::Dense(&dense).to_bytes(), &stack[..]);
     }
 }
