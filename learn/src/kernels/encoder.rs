@@ -137,7 +137,16 @@ fn col2im2(dcols: &[f32], k: usize, b: usize, s: usize, da1: &mut [f32]) {
 /// (`benches/encoder.rs`). Break-even ≈ 25 %.
 pub const SPARSE_BELOW: f32 = 0.25;
 
-/// The same for f32 grids (acting on the environment's observations): never.
+/// The same when acting on the sensor's bytes (a forward pass with no
+/// backward to feed): always, a frame being at most a third non-zero (two of
+/// six channels a cell). The actor's encoder on 1,024 sensor-like stacks, 2
+/// threads (`benches/encoder.rs`): at 21 % non-zero (coho_default) 8.0 ms on
+/// the non-zeros against 16.1 ms im2col + GEMM, at 24 % (field_dense) 8.8
+/// against 17.3, at 30 % (density_dense) 9.7 against 15.3 — where the
+/// updates' forward + backward is at break-even.
+pub const SPARSE_BELOW_ACTING: f32 = 1.0;
+
+/// The same for f32 grids (acting on float observations): never.
 /// Unpacking f32 grids is a copy, and listing their non-zeros reads every
 /// input, so im2col + GEMM wins even at 9 % (`benches/encoder.rs`: the actor's
 /// encoder on 1,000 grids, 13.5 ms against 22.6 ms at coho's density).
@@ -154,8 +163,10 @@ pub struct EncoderPack {
     /// The same transposed, `[1152, 16·K]`, for the sparse loop.
     pub w1t: Vec<f32>,
     /// Conv 1 on the non-zeros when their fraction is at most this: for
-    /// quantised grids ([`SPARSE_BELOW`]) and for f32 grids ([`SPARSE_BELOW_DENSE`]).
+    /// quantised grids in the updates ([`SPARSE_BELOW`]), for them when acting
+    /// ([`SPARSE_BELOW_ACTING`]) and for f32 grids ([`SPARSE_BELOW_DENSE`]).
     pub sparse_below: f32,
+    pub sparse_below_acting: f32,
     pub sparse_below_dense: f32,
     pub spans: Spans,
     /// `[16·K]`.
@@ -256,6 +267,7 @@ impl EncoderPack {
             w1,
             b1,
             sparse_below: SPARSE_BELOW,
+            sparse_below_acting: SPARSE_BELOW_ACTING,
             sparse_below_dense: SPARSE_BELOW_DENSE,
             spans: Spans::default(),
             w2,
@@ -265,16 +277,19 @@ impl EncoderPack {
         }
     }
 
-    /// Whether conv 1 runs on a sub-chunk's non-zeros, and if so the non-zeros.
+    /// Whether conv 1 runs on a sub-chunk's non-zeros (`acting`: no backward
+    /// pass follows), and if so the non-zeros.
     fn sparse_chunk(
         &self,
         grids: GridsRef<'_>,
         first: usize,
         s: usize,
         nzs: &mut [Vec<Nonzero>],
+        acting: bool,
     ) -> bool {
         let below = match grids {
             GridsRef::Dense(_) => self.sparse_below_dense,
+            GridsRef::Compact(_) if acting => self.sparse_below_acting,
             GridsRef::Compact(_) => self.sparse_below,
         };
         if below <= 0.0 {
@@ -326,7 +341,7 @@ impl EncoderPack {
         for s0 in (0..n).step_by(SUB) {
             let s = SUB.min(n - s0);
             let a1c = &mut a1[s0 * wa1..(s0 + s) * wa1];
-            if self.sparse_chunk(grids, first + s0, s, &mut nzs) {
+            if self.sparse_chunk(grids, first + s0, s, &mut nzs, kept.is_none()) {
                 a1c.fill(0.0);
                 for (t, nz) in nzs.iter().enumerate().take(s) {
                     sparse::forward(

@@ -254,6 +254,7 @@ pub fn encode_with(
     let mut pack = EncoderPack::new(k, hidden, bodies[0].slope, w1, b1, w2, b2, wfc, bfc);
     if let Some(below) = sparse_below {
         pack.sparse_below = below;
+        pack.sparse_below_acting = below;
         pack.sparse_below_dense = below;
     }
     let grid_data = match grids {
