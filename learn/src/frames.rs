@@ -76,3 +76,31 @@ impl CompactGrids {
         &mut self.bytes[at..at + FRAME_BYTES]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two stacks whose `k`-th frame (k = 1…6) holds proximity `k / 10` and a
+    /// fish in cell `k`: the newest frames as bytes are the same from floats
+    /// (quantised) and from the stacks' bytes (copied): stack 0's newest frame
+    /// has 3/10 → round(76.5) = 77 in cell 3, stack 1's 6/10 → 153 in cell 6.
+    #[test]
+    fn newest_frames_from_floats_and_from_bytes_agree() {
+        use deepfoids_sensors::CELLS;
+        let mut g = vec![0.0f32; 2 * STACKED_LEN];
+        for (f, frame) in g.chunks_exact_mut(FRAME_LEN).enumerate() {
+            let k = f + 1;
+            frame[k] = k as f32 / 10.0;
+            frame[CELLS + k] = 1.0;
+        }
+        let bytes = CompactGrids::from_dense(&g);
+        let (mut a, mut b) = (vec![0u8; 2 * FRAME_BYTES], vec![0u8; 2 * FRAME_BYTES]);
+        newest_frames(GridsRef::Dense(&g), &mut a);
+        newest_frames(GridsRef::Compact(&bytes.bytes), &mut b);
+        assert_eq!(a, b);
+        assert_eq!((a[3], a[CELLS + 3]), (77, 1));
+        assert_eq!((a[FRAME_BYTES + 6], a[FRAME_BYTES + CELLS + 6]), (153, 1));
+        assert_eq!(a.iter().filter(|&&x| x != 0).count(), 4);
+    }
+}
