@@ -166,19 +166,18 @@ impl BehaviourBatch {
         }
     }
 
-    /// Hold the stacks in `format`, converting what is held (bytes to floats
+    /// Hold the stacks held in the other format in `format` (bytes to floats
     /// rebuild the proximities within 1/510).
     fn convert(&mut self, format: GridFormat) {
         match format {
-            GridFormat::Bytes if self.frames.is_empty() => {
+            GridFormat::Bytes => {
                 self.frames = GridsRef::Dense(&self.grids).to_bytes().into_owned();
                 self.grids = Vec::new();
             }
-            GridFormat::Floats if self.grids.is_empty() => {
+            GridFormat::Floats => {
                 self.grids = GridsRef::Compact(&self.frames).to_dense().into_owned();
                 self.frames = Vec::new();
             }
-            _ => {}
         }
     }
 
