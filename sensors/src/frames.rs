@@ -10,7 +10,7 @@
 //! against 48,960 as floats; a frame missing from a stack (the two older
 //! frames after a respawn, SPEC §7) is all zero bytes, which rebuilds as zeros.
 
-use crate::grid_sensor::{CELLS, CHANNELS, FRAME_LEN, STACK, STACKED_LEN};
+use crate::layout::{CELLS, CHANNELS, FRAME_LEN, STACK, STACKED_LEN};
 use std::borrow::Cow;
 
 /// Bytes of one quantised frame.

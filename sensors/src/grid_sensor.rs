@@ -24,25 +24,11 @@
 
 use crate::frames::{FRAME_BYTES, FrameCell, proximity_byte};
 use crate::geometry::{BoundaryKind, Obstacle};
+pub use crate::layout::{
+    AZ_CELLS, CELLS, CHANNELS, EL_CELLS, FRAME_LEN, STACK, STACKED_CHANNELS, STACKED_LEN,
+};
 use glam::{Mat3, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI};
-
-/// Azimuth columns (W).
-pub const AZ_CELLS: usize = 34;
-/// Elevation rows (H).
-pub const EL_CELLS: usize = 20;
-/// Channels of one frame.
-pub const CHANNELS: usize = 6;
-/// Frames stacked into one observation.
-pub const STACK: usize = 3;
-/// Channels of a stacked observation.
-pub const STACKED_CHANNELS: usize = CHANNELS * STACK;
-/// Cells of one frame.
-pub const CELLS: usize = AZ_CELLS * EL_CELLS;
-/// Floats of one frame, `[6, 20, 34]`.
-pub const FRAME_LEN: usize = CHANNELS * CELLS;
-/// Floats of one stacked observation, `[18, 20, 34]`.
-pub const STACKED_LEN: usize = STACK * FRAME_LEN;
 
 /// Azimuth cell width (degrees).
 pub const AZ_STEP_DEG: f32 = 10.0;

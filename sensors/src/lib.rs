@@ -9,12 +9,15 @@
 pub mod frames;
 pub mod geometry;
 pub mod grid_sensor;
+pub mod layout;
 pub mod spatial;
 
 pub use frames::{FRAME_BYTES, FrameCell, GridFormat, GridsRef, STACK_BYTES};
 pub use geometry::{Boundary, BoundaryKind, Obstacle, Plane};
 pub use grid_sensor::{
-    AZ_CELLS, CELLS, CHANNELS, Channel, EL_CELLS, FRAME_LEN, Frame, GridSensor, SPHERE_BATCH,
-    STACK, STACKED_CHANNELS, STACKED_LEN, SeenKind, SphereBatch, push_frame, reset_stack,
+    Channel, Frame, GridSensor, SPHERE_BATCH, SeenKind, SphereBatch, push_frame, reset_stack,
+};
+pub use layout::{
+    AZ_CELLS, CELLS, CHANNELS, EL_CELLS, FRAME_LEN, STACK, STACKED_CHANNELS, STACKED_LEN,
 };
 pub use spatial::SpatialGrid;
