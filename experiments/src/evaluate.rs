@@ -7,6 +7,7 @@ use deepfoids_env::metrics::{Recorder, SchoolState, Summary};
 use deepfoids_env::policy::{act_and_step, action_buffers};
 use deepfoids_env::{Env, Policy};
 use deepfoids_io::{AtomicFile, write_atomic};
+use plotters::coord::types::RangedCoordf32 as RangedF32;
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -267,22 +268,13 @@ fn plot_pm(path: &Path, eval: &Evaluation, s: &Summary, title: &str) -> Result<(
                     .find(|x| x.0 == s.dominant_state)
                     .map_or(0.0, |x| x.1)
         );
-        let mut chart = ChartBuilder::on(root)
-            .caption(&caption, (FONT, caption_size(root, &caption, 20.0)))
-            .margin(12)
-            .x_label_area_size(45)
-            .y_label_area_size(55)
-            .build_cartesian_2d(0f32..t_max, 0f32..1.02f32)
-            .map_err(pe)?;
-        chart
-            .configure_mesh()
-            .x_desc("time (s)")
-            .y_desc("order parameter")
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 15))
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(pe)?;
+        let mut chart = eval_chart(
+            root,
+            (&caption, 20.0),
+            (0f32..t_max, 0f32..1.02f32),
+            ("time (s)", "order parameter"),
+            false,
+        )?;
         for (level, label) in [
             (SchoolState::LOW, "0.35: below = low"),
             (SchoolState::HIGH, "0.65: above = high"),
@@ -327,21 +319,13 @@ fn plot_depth(path: &Path, s: &Summary, height: f32, title: &str) -> Result<()> 
     save_png(path, 800, 700, |root| {
         root.fill(&WHITE).map_err(pe)?;
         let caption = format!("{title} — depth distribution");
-        let mut chart = ChartBuilder::on(root)
-            .caption(&caption, (FONT, caption_size(root, &caption, 18.0)))
-            .margin(12)
-            .x_label_area_size(45)
-            .y_label_area_size(55)
-            .build_cartesian_2d(0f32..max_share, height..0f32)
-            .map_err(pe)?;
-        chart
-            .configure_mesh()
-            .x_desc("share of fish-time")
-            .y_desc("depth (m)")
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 15))
-            .draw()
-            .map_err(pe)?;
+        let mut chart = eval_chart(
+            root,
+            (&caption, 18.0),
+            (0f32..max_share, height..0f32),
+            ("share of fish-time", "depth (m)"),
+            true,
+        )?;
         for (k, b) in s.behaviours.iter().enumerate() {
             let colour = PALETTE[k % PALETTE.len()];
             // A step outline: each bin drawn from its top edge to its bottom edge.
@@ -388,22 +372,13 @@ fn plot_tracks(path: &Path, env: &Env, eval: &Evaluation, title: &str) -> Result
             "{title} — top view, last {:.0} s (breaks = respawns)",
             TRACK_SECONDS.min(t_end)
         );
-        let mut chart = ChartBuilder::on(root)
-            .caption(&caption, (FONT, caption_size(root, &caption, 17.0)))
-            .margin(12)
-            .x_label_area_size(45)
-            .y_label_area_size(55)
-            .build_cartesian_2d(-half..half, -half..half)
-            .map_err(pe)?;
-        chart
-            .configure_mesh()
-            .x_desc("x (m)")
-            .y_desc("z (m)")
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 15))
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(pe)?;
+        let mut chart = eval_chart(
+            root,
+            (&caption, 17.0),
+            (-half..half, -half..half),
+            ("x (m)", "z (m)"),
+            false,
+        )?;
         chart
             .draw_series(LineSeries::new(outline.clone(), BLACK.stroke_width(2)))
             .map_err(pe)?;
@@ -439,4 +414,33 @@ fn plot_tracks(path: &Path, env: &Env, eval: &Evaluation, title: &str) -> Result
         draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 13)?;
         Ok(())
     })
+}
+
+/// A chart as `eval`'s plots draw it: the caption fitted to the width
+/// ([`caption_size`] from `caption.1` pt), 12-px margins, both axes
+/// described in 14/15-pt type; `light_grid` keeps plotters' light grid lines.
+fn eval_chart<'a, 'b>(
+    root: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    caption: (&str, f64),
+    (x, y): (std::ops::Range<f32>, std::ops::Range<f32>),
+    (x_desc, y_desc): (&str, &str),
+    light_grid: bool,
+) -> Result<ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedF32, RangedF32>>> {
+    let mut chart = ChartBuilder::on(root)
+        .caption(caption.0, (FONT, caption_size(root, caption.0, caption.1)))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(55)
+        .build_cartesian_2d(x, y)
+        .map_err(pe)?;
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15));
+    if !light_grid {
+        mesh.light_line_style(WHITE.mix(0.0));
+    }
+    mesh.draw().map_err(pe)?;
+    Ok(chart)
 }

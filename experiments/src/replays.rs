@@ -2,11 +2,11 @@
 //! the page, its memory check, the lines that describe it, and the check
 //! that an evaluation simulated again reproduces its saved P and M.
 
-use crate::evaluate::Evaluation;
+use crate::evaluate::{Evaluation, evaluate};
 use anyhow::{Context, Result, bail};
-use deepfoids_env::Env;
+use deepfoids_env::{Env, Policy};
 use deepfoids_io::write_atomic;
-use deepfoids_replay::{Info, PageSize, Recording, page};
+use deepfoids_replay::{EnvRecorder, Info, PageSize, Recording, page};
 use std::path::Path;
 
 /// Write `rec` as a replay page at `path` (atomically).
@@ -18,6 +18,38 @@ pub fn write_page(path: &Path, rec: &Recording) -> Result<PageSize> {
     }
     write_atomic(path, html.as_bytes())?;
     Ok(size)
+}
+
+/// [`evaluate`], recording a replay at `fps` frames per simulated second
+/// from the first recorded tick when `info` describes one (`None`: no
+/// recording). Check its memory first with [`check_recording`].
+pub fn evaluate_recorded(
+    env: &mut Env,
+    policy: &mut dyn Policy,
+    warmup: f64,
+    seconds: f64,
+    info: Option<Info>,
+    fps: f64,
+) -> Result<(Evaluation, Option<Recording>)> {
+    let mut recorder = None;
+    let mut record_error = None;
+    let eval = evaluate(env, policy, warmup, seconds, |env, tick, _| {
+        match (&info, recorder.as_mut()) {
+            (Some(info), None) if tick == 0 && record_error.is_none() => {
+                match EnvRecorder::new(env, info.clone(), fps) {
+                    Ok(r) => recorder = Some(r),
+                    Err(e) => record_error = Some(e),
+                }
+            }
+            (_, Some(r)) => r.observe(env),
+            _ => {}
+        }
+    })?;
+    if let Some(e) = record_error {
+        return Err(e.into());
+    }
+    let rec = recorder.map(|r| r.finish(curves(&eval)));
+    Ok((eval, rec))
 }
 
 /// Peak bytes per fish and frame while a page is built: the recording (27 B

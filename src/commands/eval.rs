@@ -5,9 +5,9 @@ use anyhow::Result;
 use clap::Args;
 use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::{ConfigDirs, Env, GridFormat};
-use deepfoids_experiments::evaluate::{EvalMeta, evaluate, print_table, write_outputs};
+use deepfoids_experiments::evaluate::{EvalMeta, print_table, write_outputs};
+use deepfoids_experiments::replays::evaluate_recorded;
 use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
-use deepfoids_replay::EnvRecorder;
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -63,27 +63,14 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     } else {
         None
     };
-    let mut recorder = None;
-    let mut record_error = None;
-    let eval = evaluate(
+    let (eval, recording) = evaluate_recorded(
         &mut env,
         policy.as_mut(),
         args.warmup,
         args.seconds,
-        |env, tick, _| match (&info, recorder.as_mut()) {
-            (Some(info), None) if tick == 0 && record_error.is_none() => {
-                match EnvRecorder::new(env, info.clone(), args.replay_fps) {
-                    Ok(r) => recorder = Some(r),
-                    Err(e) => record_error = Some(e),
-                }
-            }
-            (_, Some(r)) => r.observe(env),
-            _ => {}
-        },
+        info,
+        args.replay_fps,
     )?;
-    if let Some(e) = record_error {
-        return Err(e.into());
-    }
     let scene_id = env.scene().id.clone();
     let name = policy.name();
     let meta = EvalMeta {
@@ -104,8 +91,7 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
         "wrote {}/{{metrics.csv, summary.json, pm.png, depth.png, trajectories.png}}",
         out.display()
     );
-    if let Some(r) = recorder {
-        let rec = r.finish(deepfoids_experiments::replays::curves(&eval));
+    if let Some(rec) = recording {
         let path = out.join("replay.html");
         let size = deepfoids_experiments::replays::write_page(&path, &rec)?;
         println!(

@@ -20,14 +20,14 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::memory;
 use deepfoids_env::{ConfigDirs, Env, GridFormat, Phase};
-use deepfoids_experiments::evaluate::{Evaluation, RunArgs, evaluate};
+use deepfoids_experiments::evaluate::{Evaluation, RunArgs};
 use deepfoids_experiments::replays::{
-    MIN_CSV_ROW, PAGE_BYTES_PER_FISH_FRAME, bytes, check_pm, check_recording, curves, describe,
-    info, read_json, read_pm, warn_if_large, write_page,
+    MIN_CSV_ROW, PAGE_BYTES_PER_FISH_FRAME, bytes, check_pm, check_recording, describe,
+    evaluate_recorded, info, read_json, read_pm, warn_if_large, write_page,
 };
 use deepfoids_experiments::{bounds, load_scene, make_policy};
-use deepfoids_replay::{EnvRecorder, Recording, from_trajectories};
 use deepfoids_replay::{GifView, check_gif, write_gif};
+use deepfoids_replay::{Recording, from_trajectories};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -130,27 +130,15 @@ fn simulate(
     check_recording(&env, run.seconds, fps)?;
     let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts.options())?;
     let info = info(&env, &policy.name(), source, vec![]);
-    let mut recorder = None;
-    let mut record_error = None;
-    let eval = evaluate(
+    let (eval, rec) = evaluate_recorded(
         &mut env,
         policy.as_mut(),
         run.warmup,
         run.seconds,
-        |env, tick, _| match recorder.as_mut() {
-            None if tick == 0 => match EnvRecorder::new(env, info.clone(), fps) {
-                Ok(r) => recorder = Some(r),
-                Err(e) => record_error = Some(e),
-            },
-            Some(r) => r.observe(env),
-            None => {}
-        },
+        Some(info),
+        fps,
     )?;
-    if let Some(e) = record_error {
-        return Err(e.into());
-    }
-    let recorder = recorder.context("the evaluation recorded nothing")?;
-    let rec = recorder.finish(curves(&eval));
+    let rec = rec.context("the evaluation recorded nothing")?;
     Ok((rec, eval))
 }
 
