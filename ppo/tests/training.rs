@@ -8,6 +8,7 @@ use deepfoids_learn::plan::TrainConfigFile;
 use deepfoids_learn::policy::ActorPolicy;
 use deepfoids_learn::{Backend, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_ppo::{Ppo, PpoConfig, Rollout, load_actor, train};
+use deepfoids_testkit::{TempDir, temp_path};
 use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -17,10 +18,12 @@ fn dirs() -> ConfigDirs {
     ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"))
 }
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deepfoids-ppo-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn temp(name: &str) -> TempDir {
+    temp_path("ppo", name)
+}
+
+fn paths(dirs: &[TempDir]) -> Vec<PathBuf> {
+    dirs.iter().map(|d| d.to_path_buf()).collect()
 }
 
 /// A small, fast configuration: 512-transition buffers, 128-sample minibatches.
@@ -265,7 +268,7 @@ fn resume_continues_at_the_same_step_and_init_from_resets_it() {
         0,
         3,
         false,
-        vec![dir.clone()],
+        vec![dir.to_path_buf()],
     );
     assert_eq!(transfer.agent_steps, 0);
     let scene = Scene::load(&dirs(), "seabream_cube5", Phase::Transfer).unwrap();
@@ -288,7 +291,7 @@ fn resume_continues_at_the_same_step_and_init_from_resets_it() {
 fn three_species_from_three_runs_and_budgets_per_behaviour() {
     let mut cfg = small_config();
     cfg.checkpoint_every = 1_000_000;
-    let mut parents = vec![];
+    let mut parents: Vec<TempDir> = vec![];
     for species in ["coho", "yellowtail", "seabream"] {
         let dir = temp(&format!("parent-{species}"));
         run(
@@ -310,7 +313,7 @@ fn three_species_from_three_runs_and_budgets_per_behaviour() {
         300,
         4,
         false,
-        parents.clone(),
+        paths(&parents),
     );
     let state = RunState::load(&child.join("final")).unwrap();
     let steps: Vec<(String, u64, u64)> = state
@@ -337,7 +340,7 @@ fn three_species_from_three_runs_and_budgets_per_behaviour() {
     }
     // Zero steps: the weights are the parents', behaviour by behaviour.
     let zero = temp("three-zero");
-    run(&zero, "three_species", cfg, 0, 4, false, parents.clone());
+    run(&zero, "three_species", cfg, 0, 4, false, paths(&parents));
     let scene = Scene::load(&dirs(), "three_species", Phase::Transfer).unwrap();
     let env = Env::new(scene, 6);
     let mut kid = ActorPolicy::load(&zero, None, &env, true, 0, &load_actor).unwrap();

@@ -8,16 +8,15 @@ use deepfoids_learn::{Backend, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_sac::replay::{PROXIMITY_TOLERANCE, Replay, next_history};
 use deepfoids_sac::{Sac, SacConfig, train};
 use deepfoids_sensors::{CELLS, FRAME_LEN, STACKED_LEN};
-use std::path::{Path, PathBuf};
+use deepfoids_testkit::{TempDir, temp_path};
+use std::path::Path;
 
 fn dirs() -> ConfigDirs {
     ConfigDirs::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs"))
 }
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deepfoids-sac-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn temp(name: &str) -> TempDir {
+    temp_path("sac", name)
 }
 
 /// A small, fast configuration: 64-transition batches, one update per 100

@@ -1,5 +1,6 @@
 //! What several test suites share and no library should carry: an allocator
-//! that counts, and a folder copy. A dev-dependency only.
+//! that counts, a test's temporary folder, and a folder copy. A
+//! dev-dependency only.
 //!
 //! A test binary installs the allocator once:
 //!
@@ -10,7 +11,7 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The system allocator, counting allocations, and bytes in use (now and at
@@ -104,6 +105,40 @@ pub fn copy_dir(from: &Path, to: &Path) {
             copy_dir(&p, &dest);
         } else {
             std::fs::copy(&p, dest).unwrap();
+        }
+    }
+}
+
+/// `deepfoids-<suite>-<name>-<pid>` in the temporary folder, removed if an
+/// earlier run left it (not created), and removed again when the returned
+/// guard drops — unless the test is failing, so its files can be read.
+pub fn temp_path(suite: &str, name: &str) -> TempDir {
+    let d = std::env::temp_dir().join(format!("deepfoids-{suite}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    TempDir(d)
+}
+
+/// A test's folder in the temporary folder ([`temp_path`]); a `Path` to use.
+#[derive(Debug)]
+pub struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
         }
     }
 }

@@ -1,9 +1,10 @@
 //! What the integration tests of the binary share: running it from the
-//! repository root, its output as one text, and fresh temporary folders.
-//! Each test file uses a part of it.
+//! repository root, its output as one text, and fresh temporary folders
+//! (`deepfoids_testkit`'s). Each test file uses a part of it.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+#[allow(unused_imports)]
+pub use deepfoids_testkit::{TempDir, temp_path};
 use std::process::{Command, Output};
 
 /// The `deepfoids` binary with `args`, run in the repository root.
@@ -76,38 +77,4 @@ pub fn text(o: &Output) -> String {
 pub fn json(path: &std::path::Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-/// `deepfoids-<suite>-<name>-<pid>` in the temporary folder, removed if an
-/// earlier run left it (not created), and removed again when the returned
-/// guard drops — unless the test is failing, so its files can be read.
-pub fn temp_path(suite: &str, name: &str) -> TempDir {
-    let d = std::env::temp_dir().join(format!("deepfoids-{suite}-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    TempDir(d)
-}
-
-/// A test's folder in the temporary folder ([`temp_path`]); a `Path` to use.
-#[derive(Debug)]
-pub struct TempDir(PathBuf);
-
-impl std::ops::Deref for TempDir {
-    type Target = std::path::Path;
-    fn deref(&self) -> &std::path::Path {
-        &self.0
-    }
-}
-
-impl AsRef<std::path::Path> for TempDir {
-    fn as_ref(&self) -> &std::path::Path {
-        &self.0
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        if !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
 }
