@@ -4,7 +4,7 @@ mod common;
 use common::*;
 use deepfoids_env::baselines::{Foids, FoidsConfig};
 use deepfoids_env::policy::{act_and_step, action_buffers};
-use deepfoids_env::{FishParams, Policy};
+use deepfoids_env::{Env, FishParams, Policy};
 use glam::Vec3;
 
 /// Foids with only the rules a test wants: no boundary terms (r_pref = 0), no hovering.
@@ -17,6 +17,19 @@ fn foids(cfg: FoidsConfig) -> Foids {
         },
         1,
     )
+}
+
+/// Fish 0's first action is `(a0, 0, 1)` (SPEC §4): speed change `a0`
+/// (within 1e-5), no pitch, the full yaw step.
+#[track_caller]
+fn assert_first_action(policy: &mut dyn Policy, env: &Env, a0: f32) {
+    let mut actions = action_buffers(env);
+    policy.act(env, &mut actions).unwrap();
+    let a = &actions[0][0..3];
+    assert!(
+        close(a[0], a0, 1e-5) && a[1].abs() < 1e-5 && a[2] == 1.0,
+        "{a:?}"
+    );
 }
 
 /// Regression (issue 11, item 7: neighbour lists capped at 96, filled in grid
@@ -49,13 +62,7 @@ fn foids_separation_counts_every_neighbour_in_range() {
         cohesion_weight: 0.0,
         ..FoidsConfig::default()
     });
-    let mut actions = action_buffers(&env);
-    policy.act(&env, &mut actions).unwrap();
-    let a = &actions[0][0..3];
-    assert!(
-        close(a[0], 0.219512, 1e-5) && a[1].abs() < 1e-5 && a[2] == 1.0,
-        "{a:?}"
-    );
+    assert_first_action(&mut policy, &env, 0.219512);
 }
 
 /// Hovering (Foids §4.6, Algorithm 1) with H_switch = 1 so the switch is sure.
@@ -148,13 +155,7 @@ fn boids_count_every_neighbour_in_range() {
         common::place(&mut env, i, centre + Vec3::new(0.0, 0.0, dz * bl), f, 1.0);
     }
     let mut policy = Boids::new(BoidsConfig::default());
-    let mut actions = action_buffers(&env);
-    policy.act(&env, &mut actions).unwrap();
-    let a = &actions[0][0..3];
-    assert!(
-        close(a[0], 0.0178924, 1e-5) && a[1].abs() < 1e-5 && a[2] == 1.0,
-        "{a:?}"
-    );
+    assert_first_action(&mut policy, &env, 0.0178924);
 }
 
 /// The parameter files say what the code's defaults say: `foids.toml` is the

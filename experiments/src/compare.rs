@@ -290,24 +290,20 @@ fn table(runs: &[Run], rows: &[Row], scene: &str, args: &CompareOptions) -> (Str
     for (r, row) in runs.iter().zip(rows) {
         let st = &r.state;
         let rate = st.agent_steps as f64 / st.wall_seconds.max(1e-9);
-        let mut md_cells = vec![
-            r.label.clone(),
-            st.algo.to_string(),
-            format!("{} ({})", st.scene, st.phase.as_str()),
-            st.agent_steps.to_string(),
-            format!("{:.0}", st.wall_seconds),
-            format!("{rate:.0}"),
-            format!("{:.3}", row.reward),
-        ];
-        let mut csv_cells = vec![
-            r.dir.display().to_string(),
-            st.algo.to_string(),
-            format!("{} ({})", st.scene, st.phase.as_str()),
-            st.agent_steps.to_string(),
-            format!("{:.1}", st.wall_seconds),
-            format!("{rate:.1}"),
-            format!("{:.5}", row.reward),
-        ];
+        // The run's columns, with `t` decimals for its time and rate and `v` for its reward.
+        let run_cells = |name: String, t: usize, v: usize| {
+            vec![
+                name,
+                st.algo.to_string(),
+                format!("{} ({})", st.scene, st.phase.as_str()),
+                st.agent_steps.to_string(),
+                format!("{:.t$}", st.wall_seconds),
+                format!("{rate:.t$}"),
+                format!("{:.v$}", row.reward),
+            ]
+        };
+        let mut md_cells = run_cells(r.label.clone(), 0, 3);
+        let mut csv_cells = run_cells(r.dir.display().to_string(), 1, 5);
         for t in row.terms {
             md_cells.push(format!("{t:.3}"));
             csv_cells.push(format!("{t:.5}"));

@@ -182,28 +182,36 @@ fn check_case(case: usize, ppo: bool, values: Vec<(&str, String)>) -> Result<(),
     )
     .unwrap();
     let result = if ppo {
-        let (loaded, peak) = peak_during(|| PpoConfig::load(&dirs));
-        prop_assert!(peak <= LOAD_BOUND, "loading took {} bytes", peak);
-        match loaded {
-            Err(e) => refused(&e.to_string(), file),
-            Ok(mut config) => {
-                config.checkpoint_every = u64::MAX / 2;
-                train_within_plan(&Ppo::new(config), &scene, ppo, &root)
-            }
-        }
+        load_and_train(&dirs, file, &scene, ppo, &root, |mut c: PpoConfig| {
+            c.checkpoint_every = u64::MAX / 2;
+            Ppo::new(c)
+        })
     } else {
-        let (loaded, peak) = peak_during(|| SacConfig::load(&dirs));
-        prop_assert!(peak <= LOAD_BOUND, "loading took {} bytes", peak);
-        match loaded {
-            Err(e) => refused(&e.to_string(), file),
-            Ok(mut config) => {
-                config.checkpoint_every = u64::MAX / 2;
-                train_within_plan(&Sac::new(config), &scene, ppo, &root)
-            }
-        }
+        load_and_train(&dirs, file, &scene, ppo, &root, |mut c: SacConfig| {
+            c.checkpoint_every = u64::MAX / 2;
+            Sac::new(c)
+        })
     };
     let _ = std::fs::remove_dir_all(&root);
     result
+}
+
+/// Load `file` within [`LOAD_BOUND`] bytes: a refusal names it; a
+/// configuration it takes trains within its plan (`trainer` makes the trainer).
+fn load_and_train<C: TrainConfigFile, T: Trainer + Trains>(
+    dirs: &ConfigDirs,
+    file: &str,
+    scene: &Scene,
+    ppo: bool,
+    root: &Path,
+    trainer: impl FnOnce(C) -> T,
+) -> Result<(), TestCaseError> {
+    let (loaded, peak) = peak_during(|| C::load(dirs));
+    prop_assert!(peak <= LOAD_BOUND, "loading took {} bytes", peak);
+    match loaded {
+        Err(e) => refused(&e.to_string(), file),
+        Ok(config) => train_within_plan(&trainer(config), scene, ppo, root),
+    }
 }
 
 /// A refusal names the file (one line, or the TOML parser's with its line).

@@ -107,23 +107,21 @@ impl Writer {
 
 /// `raw` (elements of `size` bytes, in order) as byte planes.
 pub fn byte_planes(raw: &[u8], size: usize) -> Vec<u8> {
-    let n = raw.len() / size;
-    let mut out = vec![0; raw.len()];
-    for (i, e) in raw.chunks_exact(size).enumerate() {
-        for (j, &b) in e.iter().enumerate() {
-            out[j * n + i] = b;
-        }
-    }
-    out
+    transpose(raw, size)
 }
 
 /// `[frame][fish][term]` → `[term][frame][fish]`.
 pub fn term_major(terms: &[u16]) -> Vec<u16> {
-    let n = terms.len() / N_TERMS;
-    let mut out = vec![0; terms.len()];
-    for (k, t) in terms.chunks_exact(N_TERMS).enumerate() {
-        for (j, &v) in t.iter().enumerate() {
-            out[j * n + k] = v;
+    transpose(terms, N_TERMS)
+}
+
+/// Rows of `width` values, `[row][column]`, as `[column][row]`.
+fn transpose<T: Copy + Default>(values: &[T], width: usize) -> Vec<T> {
+    let n = values.len() / width;
+    let mut out = vec![T::default(); values.len()];
+    for (i, row) in values.chunks_exact(width).enumerate() {
+        for (j, &v) in row.iter().enumerate() {
+            out[j * n + i] = v;
         }
     }
     out

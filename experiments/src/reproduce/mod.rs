@@ -124,34 +124,28 @@ pub struct Profile {
 
 impl Profile {
     pub fn new(name: ProfileName) -> Self {
-        match name {
-            // Thesis §4.5.2 and §4.5.6.
-            ProfileName::Full => Self {
-                name,
-                budgets: vec![
-                    ("coho", [4_000_000, 1_000_000]),
-                    ("yellowtail", [2_000_000, 2_000_000]),
-                    ("seabream", [2_000_000, 2_000_000]),
-                ],
-                seeds: vec![0],
-                eval_seeds: vec![0, 1, 2],
-                warmup: 10.0,
-                seconds: 60.0,
-                deterministic: false,
-            },
-            ProfileName::Quick => Self {
-                name,
-                budgets: vec![
-                    ("coho", [400_000, 100_000]),
-                    ("yellowtail", [200_000, 200_000]),
-                    ("seabream", [200_000, 200_000]),
-                ],
-                seeds: vec![0],
-                eval_seeds: vec![0, 1],
-                warmup: 10.0,
-                seconds: 30.0,
-                deterministic: false,
-            },
+        // Thesis §4.5.2 and §4.5.6: pretraining and transfer budgets.
+        const THESIS: [(&str, [u64; 2]); 3] = [
+            ("coho", [4_000_000, 1_000_000]),
+            ("yellowtail", [2_000_000, 2_000_000]),
+            ("seabream", [2_000_000, 2_000_000]),
+        ];
+        // `quick`: a tenth of the budgets, two evaluation seeds of 30 s.
+        let (divisor, eval_seeds, seconds) = match name {
+            ProfileName::Full => (1, vec![0, 1, 2], 60.0),
+            ProfileName::Quick => (10, vec![0, 1], 30.0),
+        };
+        Self {
+            name,
+            budgets: THESIS
+                .iter()
+                .map(|&(species, [pre, tr])| (species, [pre / divisor, tr / divisor]))
+                .collect(),
+            seeds: vec![0],
+            eval_seeds,
+            warmup: 10.0,
+            seconds,
+            deterministic: false,
         }
     }
 
