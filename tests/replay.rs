@@ -73,7 +73,6 @@ fn replay_writes_a_page_and_a_gif() {
         w == 360 && h < 300,
         "one 200 px view (the header keeps 360 px): {w} × {h}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `eval --replay` writes replay.html next to the plots, and summary.json
@@ -121,7 +120,6 @@ fn eval_folders_replay_only_if_they_reproduce() {
     );
     assert!(t.contains("at t = 0.900 s"), "{t}");
     assert!(t.contains(&saved_p) && t.contains("0.12345"), "{t}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A simulate folder replays from its trajectories.csv, in the scene and with
@@ -172,7 +170,6 @@ fn simulate_folders_replay_their_csv() {
         s(&run),
         s(&html)
     ));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -285,7 +285,6 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
         t.contains("pretrained:coho, pretrained:coho/density_dense, pretrained:coho/density_sparse, pretrained:seabream, pretrained:yellowtail"),
         "{t}"
     );
-    let _ = std::fs::remove_dir_all(&out);
 }
 
 #[test]

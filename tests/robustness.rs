@@ -262,7 +262,6 @@ fn one_process_at_a_time_writes_a_render_folder() {
             && said.contains("which ended without releasing it; taking the lock over"),
         "{said}"
     );
-    let _ = std::fs::remove_dir_all(&out);
     let _ = std::fs::remove_file(&lock_file);
 }
 
@@ -275,7 +274,6 @@ fn a_finished_command_leaves_no_lock() {
     let parent = out.parent().unwrap();
     let name = format!(".{}.lock", out.file_name().unwrap().to_string_lossy());
     assert!(!parent.join(name).exists());
-    let _ = std::fs::remove_dir_all(&out);
 }
 
 /// `configs/` with `configs/train/ppo.toml` checkpointing every 100 agent
@@ -431,8 +429,6 @@ fn one_process_at_a_time_trains_a_run() {
         "{}",
         text(&resume)
     );
-    let _ = std::fs::remove_dir_all(&runs);
-    let _ = std::fs::remove_dir_all(&configs);
 }
 
 /// Issue 13 item 5: `--steps 0` is refused before anything is written, and a
@@ -469,8 +465,6 @@ fn nothing_to_train_and_a_wrong_init_from_leave_no_folder() {
     // The same --run-id then trains.
     let o = transfer(&runs.join("src"), "ppo");
     succeeds(&o);
-    let _ = std::fs::remove_dir_all(&runs);
-    let _ = std::fs::remove_dir_all(&configs);
 }
 
 /// A pipeline folder in use (here: locked by this test) is refused, naming
@@ -516,7 +510,6 @@ fn a_pipeline_in_use_is_refused() {
         runs.display()
     ));
     assert_refused(&o, "--pretrain-steps 0 would train nothing");
-    let _ = std::fs::remove_dir_all(&runs);
 }
 
 /// The names in folder `dir`, sorted (empty when it does not exist).
@@ -588,7 +581,6 @@ fn replay_checks_its_outputs_before_it_simulates() {
         "no page, no GIF, no temporary file"
     );
     assert_eq!(text(&o).lines().count(), 1, "{}", text(&o));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Issue 25: an output folder below a file was reported for its lock file
@@ -610,7 +602,6 @@ fn an_output_folder_below_a_file_names_the_option() {
     );
     assert!(!text(&o).contains(".lock"), "{}", text(&o));
     assert_eq!(names_in(&dir), ["file"], "no lock file, no stub folder");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Issue 25: configuration mistakes through the binary — a folder as a
@@ -711,7 +702,6 @@ fn a_text_file_as_an_onnx_policy_is_named() {
     );
     assert!(!text(&o).contains("Reading proto model"), "{}", text(&o));
     assert!(!out.exists(), "nothing is written");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `configs/train/<algo>` of `configs` with `key = value` lines replaced.
@@ -774,8 +764,6 @@ fn training_configs_are_planned_before_any_folder() {
     assert_refused(&o, &format!("time_horizon = 64 in {})", file.display()));
     assert_refused(&o, "--allow-no-update");
     assert!(names_in(&runs).is_empty(), "{:?}", names_in(&runs));
-    let _ = std::fs::remove_dir_all(&runs);
-    let _ = std::fs::remove_dir_all(&configs);
 }
 
 /// Issue 25 item 1, case by case as the issue listed them: each absurd
@@ -818,8 +806,6 @@ fn the_issues_training_configs_are_refused_by_field() {
         assert!(names_in(&runs).is_empty(), "{field}: {:?}", names_in(&runs));
         std::fs::write(configs.join("train").join(file), original).unwrap();
     }
-    let _ = std::fs::remove_dir_all(&runs);
-    let _ = std::fs::remove_dir_all(&configs);
 }
 
 /// Issue 25 items 2 and 3: a run without its final policy is evaluated only
@@ -910,6 +896,4 @@ fn checkpoints_are_never_used_silently() {
         "{}",
         text(&o)
     );
-    let _ = std::fs::remove_dir_all(&runs);
-    let _ = std::fs::remove_dir_all(&configs);
 }
