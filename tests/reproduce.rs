@@ -63,6 +63,14 @@ fn one_claim_on_a_tiny_budget_reports_ships_and_resumes() {
     let report = out.join("report");
     let md = std::fs::read_to_string(report.join("REPORT.md")).unwrap();
     assert!(md.contains("## seabream-cage"), "{md}");
+    // The default reward profile and sampled actions need no flag.
+    assert!(
+        md.contains(&format!(
+            "Command: `deepfoids reproduce --profile quick --out {} --only seabream-cage`",
+            out.display()
+        )),
+        "{md}"
+    );
     assert!(
         md.contains("Criterion: 3 m cube: cage rotation ≥ 0.5"),
         "{md}"

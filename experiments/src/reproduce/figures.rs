@@ -596,16 +596,30 @@ fn report_header(md: &mut String, r: &Report<'_>) -> Result<()> {
     )?;
     writeln!(
         md,
-        "Command: `deepfoids reproduce --profile {} --out {}{}`. Each criterion below was written into `experiments/src/reproduce/claims.rs` before the runs; values are mean ± standard deviation over training × evaluation seeds.\n",
-        format!("{:?}", profile.name).to_lowercase(),
-        args.out.display(),
-        if args.only.is_empty() {
-            String::new()
-        } else {
-            format!(" --only {}", args.only.join(","))
-        }
+        "Command: `{}`. Each criterion below was written into `experiments/src/reproduce/claims.rs` before the runs; values are mean ± standard deviation over training × evaluation seeds.\n",
+        command_line(profile, r.reward_profile, &args.out, &args.only)
     )?;
     Ok(())
+}
+
+/// The `reproduce` invocation that trains and judges what a report shows:
+/// the reward profile and `--deterministic` only when they are not the defaults.
+fn command_line(profile: &Profile, reward_profile: &str, out: &Path, only: &[String]) -> String {
+    let mut c = format!(
+        "deepfoids reproduce --profile {}",
+        format!("{:?}", profile.name).to_lowercase()
+    );
+    if reward_profile != deepfoids_env::config::DEFAULT_REWARD_PROFILE {
+        c += &format!(" --reward-profile {reward_profile}");
+    }
+    if profile.deterministic {
+        c += " --deterministic";
+    }
+    c += &format!(" --out {}", out.display());
+    if !only.is_empty() {
+        c += &format!(" --only {}", only.join(","));
+    }
+    c
 }
 
 /// REPORT.md's verdict table, then each claim with its values and figures.
@@ -704,5 +718,29 @@ pub fn git_commit() -> String {
             _ => c,
         },
         None => "unknown".into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reproduce::ProfileName;
+
+    /// A report names the flags that change what it measured, and only those.
+    #[test]
+    fn the_command_line_names_profile_mode_and_claims() {
+        let out = Path::new("runs/r");
+        let mut full = Profile::new(ProfileName::Full);
+        let default = deepfoids_env::config::DEFAULT_REWARD_PROFILE;
+        assert_eq!(
+            command_line(&full, default, out, &[]),
+            "deepfoids reproduce --profile full --out runs/r"
+        );
+        full.deterministic = true;
+        let only = ["layers".to_string(), "species".to_string()];
+        assert_eq!(
+            command_line(&full, "assort_then_budget_pairspace20", out, &only),
+            "deepfoids reproduce --profile full --reward-profile assort_then_budget_pairspace20 --deterministic --out runs/r --only layers,species"
+        );
     }
 }
