@@ -35,12 +35,10 @@ pub fn evaluate_recorded(
     let mut record_error = None;
     let eval = evaluate(env, policy, warmup, seconds, |env, tick, _| {
         match (&info, recorder.as_mut()) {
-            (Some(info), None) if tick == 0 && record_error.is_none() => {
-                match EnvRecorder::new(env, info.clone(), fps) {
-                    Ok(r) => recorder = Some(r),
-                    Err(e) => record_error = Some(e),
-                }
-            }
+            (Some(info), None) if tick == 0 => match EnvRecorder::new(env, info.clone(), fps) {
+                Ok(r) => recorder = Some(r),
+                Err(e) => record_error = Some(e),
+            },
             (_, Some(r)) => r.observe(env),
             _ => {}
         }

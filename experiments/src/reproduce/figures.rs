@@ -605,10 +605,7 @@ fn report_header(md: &mut String, r: &Report<'_>) -> Result<()> {
 /// The `reproduce` invocation that trains and judges what a report shows:
 /// the reward profile and `--deterministic` only when they are not the defaults.
 fn command_line(profile: &Profile, reward_profile: &str, out: &Path, only: &[String]) -> String {
-    let mut c = format!(
-        "deepfoids reproduce --profile {}",
-        format!("{:?}", profile.name).to_lowercase()
-    );
+    let mut c = format!("deepfoids reproduce --profile {}", profile.name.as_str());
     if reward_profile != deepfoids_env::config::DEFAULT_REWARD_PROFILE {
         c += &format!(" --reward-profile {reward_profile}");
     }

@@ -90,6 +90,14 @@ impl ProfileName {
     /// Every profile, by name.
     pub const ALL: [(&'static str, ProfileName); 2] =
         [("full", ProfileName::Full), ("quick", ProfileName::Quick)];
+
+    /// Its name on the command line, as in [`Self::ALL`].
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ProfileName::Full => "full",
+            ProfileName::Quick => "quick",
+        }
+    }
 }
 
 impl std::str::FromStr for ProfileName {

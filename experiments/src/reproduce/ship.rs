@@ -274,7 +274,7 @@ pub fn ship(
         let card = Card {
             species: sp.into(),
             scene: scene.clone(),
-            profile: format!("{:?}", profile.name).to_lowercase(),
+            profile: profile.name.as_str().to_string(),
             budget: [
                 profile.budget(sp, deepfoids_env::Phase::Pretrain)?,
                 profile.budget(sp, deepfoids_env::Phase::Transfer)?,
