@@ -6,6 +6,7 @@
 //! (the machine is shared). `cargo bench -p deepfoids-learn --bench encoder`.
 
 use deepfoids_learn::frames::CompactGrids;
+use deepfoids_learn::kernels::bytes;
 use deepfoids_learn::kernels::encoder::{EncoderPack, GridsRef};
 use deepfoids_learn::kernels::geometry::*;
 use deepfoids_sensors::{CELLS, CHANNELS, FRAME_LEN, STACKED_LEN};
@@ -124,8 +125,12 @@ fn main() {
                 }
             }
             println!(
-                "{scene}: actor encoder inference on {what} (K = 1): im2col + GEMM {:.1} ms, non-zeros {:.1} ms",
+                "{scene}: actor encoder inference on {what} (K = 1): im2col + GEMM {:.1} ms, {} {:.1} ms",
                 1e3 * best_infer[0],
+                match grids {
+                    GridsRef::Compact(_) if bytes::available() => "straight from the bytes",
+                    _ => "non-zeros",
+                },
                 1e3 * best_infer[1]
             );
         }

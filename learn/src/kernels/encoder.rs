@@ -17,10 +17,12 @@
 //! asked the input's gradient `dcol1 = dz1·W1` scattered back onto the grid.
 //! Bias gradients are column sums of the `dz`s.
 
+use super::bytes::{self, ByteWeights};
 use super::geometry::*;
 pub use super::grids::GridsRef;
 use super::sparse::{self, Nonzero, Spans, nonzeros, transpose};
 use super::{SUB, TASK, add_bias, leaky_backward, leaky_inplace, par_tasks, sgemm, sum_rows};
+use crate::frames::STACK_BYTES;
 use deepfoids_sensors::{AZ_CELLS, STACKED_LEN};
 use rayon::prelude::*;
 
@@ -138,12 +140,12 @@ fn col2im2(dcols: &[f32], k: usize, b: usize, s: usize, da1: &mut [f32]) {
 pub const SPARSE_BELOW: f32 = 0.25;
 
 /// The same when acting on the sensor's bytes (a forward pass with no
-/// backward to feed): always, a frame being at most a third non-zero (two of
-/// six channels a cell). The actor's encoder on 1,024 sensor-like stacks, 2
-/// threads (`benches/encoder.rs`): at 21 % non-zero (coho_default) 8.0 ms on
-/// the non-zeros against 16.1 ms im2col + GEMM, at 24 % (field_dense) 8.8
-/// against 17.3, at 30 % (density_dense) 9.7 against 15.3 — where the
-/// updates' forward + backward is at break-even.
+/// backward to feed): always. With AVX-512 conv 1 then reads the bytes
+/// directly ([`bytes`]), elsewhere it runs on their non-zeros, a frame being
+/// at most a third non-zero (two of six channels a cell); 0 sends acting to
+/// im2col + GEMM. The actor's encoder on 1,024 sensor-like stacks, 2 threads
+/// (`benches/encoder.rs`, session 45): at 21 % non-zero (coho_default) 3.8 ms
+/// on the bytes, 9.3 ms on the non-zeros, 18.8 ms im2col + GEMM.
 pub const SPARSE_BELOW_ACTING: f32 = 1.0;
 
 /// The same for f32 grids (acting on float observations): never.
@@ -164,11 +166,14 @@ pub struct EncoderPack {
     pub w1t: Vec<f32>,
     /// Conv 1 on the non-zeros when their fraction is at most this: for
     /// quantised grids in the updates ([`SPARSE_BELOW`]), for them when acting
-    /// ([`SPARSE_BELOW_ACTING`]) and for f32 grids ([`SPARSE_BELOW_DENSE`]).
+    /// ([`SPARSE_BELOW_ACTING`]: above 0, straight from the bytes where the
+    /// CPU can) and for f32 grids ([`SPARSE_BELOW_DENSE`]).
     pub sparse_below: f32,
     pub sparse_below_acting: f32,
     pub sparse_below_dense: f32,
     pub spans: Spans,
+    /// The same rearranged for acting on the sensor's bytes ([`bytes`]).
+    pub w1_bytes: ByteWeights,
     /// `[16·K]`.
     pub b1: Vec<f32>,
     /// Per body: conv-2 weights `[32, 256]`, bias `[32]`, dense weights `[96, hidden]`, bias `[hidden]`.
@@ -261,6 +266,7 @@ impl EncoderPack {
     ) -> Self {
         Self {
             w1t: transpose(&w1, C1 * k, PATCH1),
+            w1_bytes: ByteWeights::new(&w1, C1 * k),
             k,
             hidden,
             slope,
@@ -338,10 +344,26 @@ impl EncoderPack {
         let mut cols2 = vec![0.0f32; SUB * P2 * PATCH2];
         let mut z2 = vec![0.0f32; SUB * P2 * C2];
         let mut nzs: Vec<Vec<Nonzero>> = vec![Vec::new(); SUB];
+        let mut scratch: Option<bytes::Scratch> = None;
         for s0 in (0..n).step_by(SUB) {
             let s = SUB.min(n - s0);
             let a1c = &mut a1[s0 * wa1..(s0 + s) * wa1];
-            if self.sparse_chunk(grids, first + s0, s, &mut nzs, kept.is_none()) {
+            // Acting on the sensor's bytes: conv 1 read straight from them.
+            let acting_bytes = match grids {
+                GridsRef::Compact(b)
+                    if kept.is_none() && self.sparse_below_acting > 0.0 && bytes::available() =>
+                {
+                    Some(b)
+                }
+                _ => None,
+            };
+            if let Some(b) = acting_bytes {
+                let scratch = scratch.get_or_insert_with(bytes::Scratch::default);
+                for (t, z) in a1c.chunks_exact_mut(wa1).enumerate() {
+                    let at = (first + s0 + t) * STACK_BYTES;
+                    bytes::forward(&b[at..at + STACK_BYTES], &self.w1_bytes, scratch, z);
+                }
+            } else if self.sparse_chunk(grids, first + s0, s, &mut nzs, kept.is_none()) {
                 a1c.fill(0.0);
                 for (t, nz) in nzs.iter().enumerate().take(s) {
                     sparse::forward(

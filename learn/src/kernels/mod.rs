@@ -11,7 +11,8 @@
 //! * [`ops`]: the same as Burn operations with a hand-written backward,
 //!   registered in Burn's autodiff graph (custom ops on the Flex backend);
 //! * [`infer`]: a fused forward without autodiff for acting (rollouts,
-//!   evaluation, SAC's targets), on weights copied out of the Burn modules.
+//!   evaluation, SAC's targets), on weights copied out of the Burn modules;
+//!   on the sensor's byte frames conv 1 reads the bytes directly ([`bytes`]).
 //!
 //! Every kernel is tested against Burn's own layers (`Conv2d`, `Linear`,
 //! `leaky_relu`, `silu`): outputs and gradients within 1e−4 (`tests/parity.rs`).
@@ -21,6 +22,7 @@
 //! threads, and the tasks' weight gradients are summed in task order, so a
 //! seed gives the same bits on 1 or 2 threads.
 
+pub mod bytes;
 pub mod dense;
 pub mod encoder;
 pub mod grids;

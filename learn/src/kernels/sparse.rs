@@ -194,13 +194,13 @@ isa_variants!(scatter_avx2, "avx2,fma", true);
 
 /// Which instruction set the loops run on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Isa {
+pub(super) enum Isa {
     Avx512,
     Avx2,
     Plain,
 }
 
-fn isa() -> Isa {
+pub(super) fn isa() -> Isa {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::is_x86_feature_detected as has;
