@@ -2,6 +2,13 @@
 
 use std::process::ExitCode;
 
+/// mimalloc instead of the system's allocator: the trainers and the
+/// 30,000-fish cage allocate megabyte buffers every update or tick, which
+/// glibc's malloc hands back to the kernel and gets again as fresh pages
+/// (page faults and zeroing); mimalloc keeps them (docs/speed.md, session 45).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     match deepfoids::cli::run() {
         Ok(()) => ExitCode::SUCCESS,
