@@ -555,9 +555,11 @@ fn resume_from<T: Trainer>(
 
 /// The environment, reseeded with `seed + resets` on resume. It hands the
 /// grids out as floats: the learners act on them and store them as bytes.
-/// (Acting on the sensor's bytes works too — the learners read either — but
-/// it made no difference to the speed of `train` (1.02×, within the rounds'
-/// spread, docs/speed.md) and changes every seeded run: with floats, training
+/// (Acting on the sensor's bytes works too — the learners read either — and
+/// since conv 1 reads them directly it makes `train` 1.15–1.2× faster; but it
+/// changes every seeded run, and runs trained as the quickstart then hit the
+/// net 15.6 and 16.8 times per fish-hour for two of three seeds, over the
+/// quickstart's ≤ 10 (docs/speed.md, session 45). With floats, training
 /// reproduces the committed runs and the quickstart bit for bit.)
 fn new_env(args: &RunArgs, resumed: Option<&RunState>) -> Env {
     let resets = resumed.map_or(0, |s| s.resets + 1);
