@@ -259,3 +259,26 @@ fn fused_forward_matches_burn_layers() {
     let k = head_c.forward(c.forward(&Grids::Dense(x), va));
     assert_close("ops without autodiff", &to_vec(ref_c), &to_vec(k));
 }
+
+/// Acting on the sensor's bytes (conv 1 read straight from them where the CPU
+/// can, else on their non-zeros) against im2col + GEMM on the same frames as
+/// floats: the encodings of one body and of two, for 150 samples (two full
+/// tasks of 64 and a partial one, sub-chunks of 16 and a partial one).
+#[test]
+fn acting_on_bytes_matches_acting_on_their_floats() {
+    let dev = Device::flex();
+    let (a, c) = (body(&dev, 0), body(&dev, 3));
+    let n = 150;
+    let bytes = CompactGrids::from_dense(&sensor_like(n, 7));
+    let floats = bytes.to_dense();
+    for parts in [vec![(&a, None)], vec![(&a, None), (&c, None)]] {
+        let net = infer_net(&parts);
+        let on_bytes = net.encode(GridsRef::Compact(&bytes.bytes));
+        let on_floats = net.encode(GridsRef::Dense(&floats));
+        assert_close(
+            &format!("encodings of {} bodies", parts.len()),
+            &on_floats,
+            &on_bytes,
+        );
+    }
+}
