@@ -19,6 +19,11 @@
 //! coho-like stacks the actor's conv 1 here takes about a third of its time
 //! (`benches/encoder.rs`). The updates keep the scatter: its list of
 //! non-zeros also serves their backward pass.
+//!
+//! The sums run in another order than the scatter's, so a seeded evaluation
+//! acting on bytes gives other actions (≤ 1e−6 apart, then a chaotic school)
+//! on a CPU without AVX-512 than on one with it; on one machine it
+//! reproduces exactly. Training acts on floats and is not affected.
 
 use super::geometry::*;
 use super::sparse::{Isa, isa};
