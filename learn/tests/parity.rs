@@ -282,3 +282,61 @@ fn acting_on_bytes_matches_acting_on_their_floats() {
         );
     }
 }
+
+/// The general convolution op (the fish detector's layers) against Burn's
+/// `Conv2d` → `leaky_relu`: outputs, weight, bias and input gradients, for a
+/// stride-2 layer, dilated layers with their padding and a 1 × 1 head
+/// without activation, on odd sizes.
+#[test]
+fn conv2d_op_matches_burn_conv2d() {
+    use burn::nn::PaddingConfig2d;
+    use burn::nn::conv::Conv2dConfig;
+    use burn::tensor::activation::leaky_relu;
+    let dev = Device::flex().autodiff();
+    for (c_in, c_out, k, stride, dilation, slope, (h, w)) in [
+        (3, 8, 3, 2, 1, Some(0.1), (17, 24)),
+        (8, 8, 3, 1, 2, Some(0.1), (9, 11)),
+        (8, 16, 3, 1, 4, Some(0.1), (12, 10)),
+        (16, 4, 1, 1, 1, None, (6, 7)),
+    ] {
+        let pad = if k == 1 { 0 } else { dilation };
+        let conv = Conv2dConfig::new([c_in, c_out], [k, k])
+            .with_stride([stride, stride])
+            .with_dilation([dilation, dilation])
+            .with_padding(if pad == 0 {
+                PaddingConfig2d::Valid
+            } else {
+                PaddingConfig2d::Explicit(pad, pad, pad, pad)
+            })
+            .init(&dev);
+        let n = 3;
+        let data = noise(n * c_in * h * w, c_out as u32);
+        let x_k =
+            Tensor::<4>::from_data(TensorData::new(data, [n, c_in, h, w]), &dev).require_grad();
+        let x_r = x_k.clone().detach().require_grad();
+        let out_k = deepfoids_learn::kernels::ops::conv2d(x_k.clone(), &conv, slope)
+            .expect("the conv op runs on Flex with autodiff");
+        let z = conv.forward(x_r.clone());
+        let out_r = match slope {
+            Some(s) => leaky_relu(z, f64::from(s)),
+            None => z,
+        };
+        assert_eq!(out_k.dims(), out_r.dims());
+        let what = format!("conv {c_in}→{c_out} k{k} s{stride} d{dilation}");
+        assert_close(&what, &to_vec(out_r.clone()), &to_vec(out_k.clone()));
+        let dims = out_k.dims();
+        let len = dims.iter().product();
+        let gw = Tensor::<4>::from_data(TensorData::new(noise(len, 9), dims), &dev);
+        let g_k = (out_k * gw.clone()).sum().backward();
+        let g_r = (out_r * gw).sum().backward();
+        let weight = |g| to_vec(conv.weight.val().grad(g).unwrap());
+        let bias = |g| to_vec(conv.bias.as_ref().unwrap().val().grad(g).unwrap());
+        assert_close(&format!("{what}: weight"), &weight(&g_r), &weight(&g_k));
+        assert_close(&format!("{what}: bias"), &bias(&g_r), &bias(&g_k));
+        assert_close(
+            &format!("{what}: input"),
+            &to_vec(x_r.grad(&g_r).unwrap()),
+            &to_vec(x_k.grad(&g_k).unwrap()),
+        );
+    }
+}

@@ -23,6 +23,7 @@
 //! seed gives the same bits on 1 or 2 threads.
 
 pub mod bytes;
+pub mod conv;
 pub mod dense;
 pub mod encoder;
 pub mod grids;

@@ -7,6 +7,7 @@
 //! Only the Flex backend has them: on another backend these functions return
 //! `None` and the caller uses Burn's layers.
 
+use super::conv::ConvPack;
 use super::dense::DensePack;
 use super::encoder::{EncoderPack, EncoderSaved, GridsRef};
 use super::geometry::*;
@@ -17,8 +18,8 @@ use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, NodeGuard, Ops, OpsKind};
 use burn::backend::flex::FlexTensor;
 use burn::backend::{Autodiff, Flex};
-use burn::nn::Linear;
 use burn::nn::conv::Conv2d;
+use burn::nn::{Linear, PaddingConfig2d};
 use burn::prelude::*;
 use deepfoids_sensors::STACKED_LEN;
 use std::borrow::Cow;
@@ -375,6 +376,117 @@ pub fn dense_silu(x: Tensor<2>, layer: &Linear) -> Option<Tensor<2>> {
     let guards = graph_nodes(&prims);
     let guards: [_; 3] = guards.try_into().expect("three inputs");
     let ad = match DenseBackward
+        .prepare::<NoCheckpointing>(guards)
+        .compute_bound()
+        .stateful()
+    {
+        OpsKind::Tracked(prep) => prep.finish(state, out),
+        OpsKind::UnTracked(prep) => prep.finish(out),
+    };
+    Some(Tensor::from_primitive::<Ad>(ad))
+}
+
+#[derive(Clone, Debug)]
+struct ConvState {
+    pack: Arc<ConvPack>,
+    x: FlexTensor,
+    y: FlexTensor,
+    n: usize,
+    hw: (usize, usize),
+}
+
+#[derive(Debug)]
+struct ConvBackward;
+
+impl Backward<Flex, 3> for ConvBackward {
+    type State = ConvState;
+
+    fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _: &mut Checkpointer) {
+        let st = ops.state;
+        let dy = grads.consume::<Flex>(&ops.node);
+        let dy = values(&dy);
+        let (x, y) = (values(&st.x), values(&st.y));
+        let input_grad = ops.parents[0].is_some();
+        let (g, dx) = st.pack.backward(&x, &y, &dy, st.n, st.hw, input_grad);
+        let [px, pw, pb] = &ops.parents;
+        // Every input entered flattened (1-D): gradients are registered so.
+        if let (Some(node), Some(dx)) = (px, dx) {
+            let len = dx.len();
+            grads.register::<Flex>(node.id, flex(dx, &[len]));
+        }
+        if let Some(node) = pw {
+            let len = g.w.len();
+            grads.register::<Flex>(node.id, flex(g.w, &[len]));
+        }
+        if let Some(node) = pb {
+            let len = g.b.len();
+            grads.register::<Flex>(node.id, flex(g.b, &[len]));
+        }
+    }
+}
+
+/// A Burn `Conv2d` (with bias) on `x` `[n, c_in, h, w]`, then LeakyReLU of
+/// negative slope `slope` (none for `None`), by [`ConvPack`]'s im2col + GEMM
+/// with a hand-written backward. `None` (use Burn's layer) unless every
+/// tensor is on the Flex backend and the layer is one the kernel covers: one
+/// group, a square kernel, the same stride and dilation on both axes and
+/// symmetric padding.
+pub fn conv2d(x: Tensor<4>, conv: &Conv2d, slope: Option<f32>) -> Option<Tensor<4>> {
+    let [n, c_in, h, w] = x.dims();
+    let [c_out, w_in, k, k2] = conv.weight.dims();
+    let padding = match conv.padding {
+        PaddingConfig2d::Valid => 0,
+        PaddingConfig2d::Explicit(t, l, b, r) if t == l && t == b && t == r => t,
+        _ => return None,
+    };
+    let square = |[a, b]: [usize; 2]| (a == b).then_some(a);
+    if conv.groups != 1 || w_in != c_in || k != k2 {
+        return None;
+    }
+    let mut pack = ConvPack {
+        c_in,
+        c_out,
+        k,
+        stride: square(conv.stride)?,
+        dilation: square(conv.dilation)?,
+        padding,
+        w: vec![],
+        b: vec![],
+        slope,
+    };
+    let (ho, wo) = pack.out_size(h, w)?;
+    let inputs = vec![
+        x.flatten::<1>(0, 3),
+        conv.weight.val().flatten::<1>(0, 3),
+        conv.bias.as_ref()?.val(),
+    ];
+    let (prims, tracked) = prims(inputs)?;
+    pack.w = values(prims[1].flex()).into_owned();
+    pack.b = values(prims[2].flex()).into_owned();
+    let xv = values(prims[0].flex());
+    let y = pack.forward(&xv, n, (h, w));
+    drop(xv);
+    let out = flex(y, &[n, c_out, ho, wo]);
+    if !tracked {
+        return Some(Tensor::from_primitive::<Flex>(out));
+    }
+    let contiguous = |t: &FlexTensor| {
+        if t.is_contiguous() {
+            t.clone()
+        } else {
+            t.to_contiguous()
+        }
+    };
+    let state = ConvState {
+        pack: Arc::new(pack),
+        x: contiguous(prims[0].flex()),
+        y: out.clone(),
+        n,
+        hw: (h, w),
+    };
+    let guards = graph_nodes(&prims);
+    let guards: [_; 3] = guards.try_into().expect("three inputs");
+    let ad = match ConvBackward
         .prepare::<NoCheckpointing>(guards)
         .compute_bound()
         .stateful()
