@@ -26,6 +26,7 @@ use burn::prelude::*;
 use burn::tensor::activation::leaky_relu;
 use burn::tensor::module::avg_pool2d;
 use burn::tensor::ops::AvgPoolOptions;
+use deepfoids_learn::kernels::ops::conv2d;
 
 /// Output stride of the heads (pixels per cell) unless told otherwise.
 pub const STRIDE: usize = 8;
@@ -170,11 +171,34 @@ impl DetectorNetConfig {
 impl DetectorNet {
     /// `(heat logits [B, 1, H/s, W/s], boxes [B, 4, H/s, W/s])`, `s` the stride.
     pub fn forward(&self, image: Tensor<4>) -> (Tensor<4>, Tensor<4>) {
-        let mut x = local_contrast(image);
+        self.forward_normalised(local_contrast(image))
+    }
+
+    /// [`forward`](Self::forward) on an image already normalised to its
+    /// local contrast (as `train-detector` computes it, with running sums
+    /// and off the autodiff graph: it has no parameters).
+    ///
+    /// On the Flex backend every layer runs as `deepfoids-learn`'s
+    /// convolution kernel (im2col + GEMM with a hand-written backward, held
+    /// to Burn's `Conv2d` within 1e−4 by `learn/tests/parity.rs`); elsewhere
+    /// as Burn's layers.
+    pub fn forward_normalised(&self, mut x: Tensor<4>) -> (Tensor<4>, Tensor<4>) {
+        let layer = |x: Tensor<4>, conv: &Conv2d, slope: Option<f32>| {
+            conv2d(x.clone(), conv, slope).unwrap_or_else(|| {
+                let z = conv.forward(x);
+                match slope {
+                    Some(s) => leaky_relu(z, f64::from(s)),
+                    None => z,
+                }
+            })
+        };
         for conv in &self.body {
-            x = leaky_relu(conv.forward(x), SLOPE);
+            x = layer(x, conv, Some(SLOPE as f32));
         }
-        (self.heat.forward(x.clone()), self.boxes.forward(x))
+        (
+            layer(x.clone(), &self.heat, None),
+            layer(x, &self.boxes, None),
+        )
     }
 
     /// Channels of the first layer.

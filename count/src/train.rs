@@ -22,13 +22,13 @@
 
 use crate::boxes::Detection;
 use crate::count::{CountConfig, Counter};
-use crate::detector::{Detector, to_chw};
+use crate::detector::Detector;
 use crate::error::{CountError, Result};
 use crate::eval::average_precision_ignoring;
 use crate::export::export_detector;
 use crate::frames::read_image;
-use crate::model::{DetectorNet, DetectorNetConfig, STRIDE, STRIDES};
-use crate::preprocess::{InputCamera, PerspectiveView, median_blur};
+use crate::model::{DetectorNet, DetectorNetConfig, NORM_EPS, NORM_KERNEL, STRIDE, STRIDES};
+use crate::preprocess::{InputCamera, PerspectiveView, local_contrast, median_blur};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::prelude::*;
 use burn::tensor::activation::log_sigmoid;
@@ -557,7 +557,7 @@ pub fn train(
             break;
         }
         let [x, ht, bt, mk, wt] = sample_batch(data, cfg, &mut rng, &dev);
-        let (heat, boxes) = model.forward(x);
+        let (heat, boxes) = model.forward_normalised(x);
         let (total, focal, l1) = loss(heat, boxes, ht, bt, mk, wt);
         let value = total.clone().into_scalar::<f32>() as f64;
         if !value.is_finite() {
@@ -674,7 +674,7 @@ fn sample_batch(data: &Data, cfg: &TrainConfig, rng: &mut Rng, dev: &Device) -> 
     for _ in 0..b {
         let s = &data.train[rng.below(data.train.len() as u64) as usize];
         let (img, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, rng);
-        x.extend(to_chw(&img));
+        x.extend(local_contrast(&img, NORM_KERNEL, NORM_EPS));
         let t = targets(&boxes, &ignore, cfg.crop, cfg.stride);
         ht.extend(t.heat);
         bt.extend(t.reg);
