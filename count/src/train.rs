@@ -421,7 +421,8 @@ pub fn targets(boxes: &[Detection], ignore: &[Detection], crop: u32, stride: usi
     }
 }
 
-/// A random `crop × crop` piece of a sample (zero-padded), maybe mirrored,
+/// A random `crop × crop` piece of a sample (zero-padded), normalised to its
+/// local contrast as `count` sees it ([`normalised_crop`]), maybe mirrored,
 /// with its labelled and ignored boxes (the faint fish among the ignored
 /// unless `faint_as_water`). Half the crops hold a labelled fish
 /// drawn at random, anywhere in the crop: a bottom camera's school fills a
@@ -431,7 +432,7 @@ fn random_crop(
     crop: u32,
     faint_as_water: bool,
     rng: &mut Rng,
-) -> (RgbImage, Vec<Detection>, Vec<Detection>) {
+) -> (Vec<f32>, Vec<Detection>, Vec<Detection>) {
     let (w, h) = s.image.dimensions();
     let (max_x, max_y) = (w.saturating_sub(crop), h.saturating_sub(crop));
     let (x, y) = if !s.boxes.is_empty() && rng.next() & 1 == 1 {
@@ -450,7 +451,7 @@ fn random_crop(
             rng.below(max_y as u64 + 1) as u32,
         )
     };
-    let mut img = crate::windows::crop(&s.image, crate::windows::Window { x, y }, crop);
+    let mut planes = normalised_crop(&s.image, x, y, crop);
     let shift = |v: &[Detection]| -> Vec<Detection> {
         v.iter()
             .map(|b| b.scaled_shifted(1.0, -(x as f32), -(y as f32)))
@@ -462,13 +463,39 @@ fn random_crop(
     }
     let mut boxes = shift(&s.boxes);
     if rng.next() & 1 == 1 {
-        image::imageops::flip_horizontal_in_place(&mut img);
+        for row in planes.chunks_exact_mut(crop as usize) {
+            row.reverse();
+        }
         let c = crop as f32;
         for b in boxes.iter_mut().chain(ignore.iter_mut()) {
             (b.x0, b.x1) = (c - b.x1, c - b.x0);
         }
     }
-    (img, boxes, ignore)
+    (planes, boxes, ignore)
+}
+
+/// The `crop × crop` square at `(x, y)` of `img`, normalised to its local
+/// contrast as `count` normalises a whole view before it cuts its windows:
+/// computed (with running sums) over the square and a margin of half the
+/// normalisation kernel where the image has it, then cut, so every pixel's
+/// statistics come from the same pixels as in `count`. `[3, crop, crop]`.
+pub fn normalised_crop(img: &RgbImage, x: u32, y: u32, crop: u32) -> Vec<f32> {
+    use crate::windows::{Window, crop_planes};
+    let (w, h) = img.dimensions();
+    let m = (NORM_KERNEL / 2) as u32;
+    let (x0, y0) = (x.saturating_sub(m), y.saturating_sub(m));
+    let (x1, y1) = ((x + crop + m).min(w), (y + crop + m).min(h));
+    let region = image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image();
+    let planes = local_contrast(&region, NORM_KERNEL, NORM_EPS);
+    crop_planes(
+        &planes,
+        region.dimensions(),
+        Window {
+            x: x - x0,
+            y: y - y0,
+        },
+        crop,
+    )
 }
 
 /// CenterNet's loss of a batch: `(total, focal, box)`; `weight` scales each
@@ -673,8 +700,8 @@ fn sample_batch(data: &Data, cfg: &TrainConfig, rng: &mut Rng, dev: &Device) -> 
     let (mut x, mut ht, mut bt, mut mk, mut wt) = (vec![], vec![], vec![], vec![], vec![]);
     for _ in 0..b {
         let s = &data.train[rng.below(data.train.len() as u64) as usize];
-        let (img, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, rng);
-        x.extend(local_contrast(&img, NORM_KERNEL, NORM_EPS));
+        let (planes, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, rng);
+        x.extend(planes);
         let t = targets(&boxes, &ignore, cfg.crop, cfg.stride);
         ht.extend(t.heat);
         bt.extend(t.reg);
@@ -1043,6 +1070,47 @@ mod tests {
             let (_, boxes, ignore) = random_crop(&s, 16, water, &mut Rng(3));
             assert_eq!((boxes.len(), ignore.len()), (1, ignored), "water {water}");
         }
+    }
+
+    /// A crop's normalisation is the whole image's, cut: at the image's
+    /// corner (no margin on two sides), in the middle (a margin all round)
+    /// and at the far edge, on an image with structure everywhere. Cut from
+    /// a crop normalised alone instead, the pixels near its inner edges
+    /// differ (the square no longer sees their neighbours).
+    #[test]
+    fn crops_are_normalised_as_count_normalises_the_view() {
+        use crate::windows::{Window, crop_planes};
+        let img = RgbImage::from_fn(90, 70, |x, y| {
+            image::Rgb([
+                (x * 7 + y * 3) as u8,
+                ((x * x + y) % 251) as u8,
+                ((x ^ y) * 5) as u8,
+            ])
+        });
+        let whole = local_contrast(&img, NORM_KERNEL, NORM_EPS);
+        for (x, y) in [(0, 0), (20, 17), (58, 38)] {
+            let want = crop_planes(&whole, img.dimensions(), Window { x, y }, 32);
+            let got = normalised_crop(&img, x, y, 32);
+            assert_eq!(got.len(), want.len());
+            let worst = got
+                .iter()
+                .zip(&want)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f32::max);
+            assert!(worst < 1e-5, "crop at ({x}, {y}): max |Δ| {worst}");
+        }
+        let alone = crate::windows::crop(&img, Window { x: 20, y: 17 }, 32);
+        let alone = local_contrast(&alone, NORM_KERNEL, NORM_EPS);
+        let want = crop_planes(&whole, img.dimensions(), Window { x: 20, y: 17 }, 32);
+        let worst = alone
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(
+            worst > 0.1,
+            "a crop normalised alone differs at its edges: {worst}"
+        );
     }
 
     /// One 16 × 8 fish centred at (20, 12) in a 32-px crop (grid 4 × 4):
