@@ -15,13 +15,16 @@ from pathlib import Path
 
 root = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/variants")
 rows = defaultdict(list)
-pattern = re.compile(r"eval-(?P<run>.+)-(?P<stage>pre|sparse|dense)-(?P<scene>\w+?)-s(?P<seed>\d+)$")
+pattern = re.compile(r"eval-(?P<run>.+)-(?P<stage>pre|default|sparse|dense)-(?P<scene>\w+?)-s(?P<seed>\d+)$")
 for summary in sorted(root.glob("eval-*/summary.json")):
     m = pattern.match(summary.parent.name)
     if not m:
         continue
     s = json.loads(summary.read_text())["summary"]
-    rows[(m["run"], m["scene"])].append(s)
+    # transfer_variants.sh's transfers into coho_default (stage `default`)
+    # share their scene with the pretraining they start from: label them.
+    run = m["run"] + (" (transfer)" if m["stage"] == "default" else "")
+    rows[(run, m["scene"])].append(s)
 
 
 def share(s, state):

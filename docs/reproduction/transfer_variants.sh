@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Transfer-weight variants on one shared pretraining (issue 21, NOTES.md
+# "Session 46"): coho pretrained once with BASE's pretraining weights at the
+# thesis' budget, then transferred with each PROFILE's transfer weights into
+# each scene, as the shipped policies are (4 M + 1 M); every policy evaluated
+# with sampled actions on seeds 11 and 12, 60 s after a 10 s warm-up.
+# Resumable: finished runs and evaluations are skipped. The evaluations' folder
+# names follow variants.sh, so variants_table.py tables them.
+#
+#   docs/reproduction/transfer_variants.sh PROFILE [PROFILE …]
+#
+# Env: BIN (target/release/deepfoids), OUT (runs/transfer-variants), BASE
+# (mean_then_budget_space20), PRE (4000000), TRANSFER (1000000), SCENES
+# ("coho_default density_dense").
+set -euo pipefail
+BIN=${BIN:-target/release/deepfoids}
+OUT=${OUT:-runs/transfer-variants}
+BASE=${BASE:-mean_then_budget_space20}
+PRE=${PRE:-4000000}
+TRANSFER=${TRANSFER:-1000000}
+SCENES=${SCENES:-coho_default density_dense}
+mkdir -p "$OUT"
+train() { # profile scene phase steps run [init]
+    local profile=$1 scene=$2 phase=$3 steps=$4 run=$5 init=${6:-}
+    if [[ -f $OUT/$run/final/state.json ]]; then return; fi
+    local resume=()
+    [[ -d $OUT/$run ]] && resume=(--resume)
+    "$BIN" train --reward-profile "$profile" --scene "$scene" --phase "$phase" \
+        --steps "$steps" --run-id "$run" --runs-dir "$OUT" --eval-seconds 0 --quiet \
+        ${init:+--init-from "$OUT/$init"} "${resume[@]}"
+}
+evaluate() { # profile scene phase run
+    local profile=$1 scene=$2 phase=$3 run=$4
+    for seed in 11 12; do
+        local dir=$OUT/eval-$run-$scene-s$seed
+        [[ -f $dir/summary.json ]] && continue
+        "$BIN" eval --reward-profile "$profile" --scene "$scene" --phase "$phase" \
+            --policy "$OUT/$run" --seed "$seed" --warmup 10 --seconds 60 \
+            --out "$dir" >/dev/null
+    done
+}
+pre=$BASE-pre
+echo "== $BASE: pretraining ($(date +%T))"
+train "$BASE" coho_default pretrain "$PRE" "$pre"
+evaluate "$BASE" coho_default pretrain "$pre"
+for p in "$@"; do
+    for scene in $SCENES; do
+        stage=${scene#density_}
+        [[ $scene == coho_default ]] && stage=default
+        run=$p-$stage
+        echo "== $p: transfer into $scene ($(date +%T))"
+        train "$p" "$scene" transfer "$TRANSFER" "$run" "$pre"
+        evaluate "$p" "$scene" transfer "$run"
+    done
+done
+echo "== done ($(date +%T))"
