@@ -197,6 +197,25 @@ impl ConvPack {
         }
     }
 
+    /// `f` on the patch matrix `[K, P]` of one image `img` `[c_in, h, w]`:
+    /// the image itself for a pointwise layer, else its im2col in this
+    /// thread's scratch.
+    fn with_cols<R>(
+        &self,
+        img: &[f32],
+        hw: (usize, usize),
+        out: (usize, usize),
+        f: impl FnOnce(&[f32]) -> R,
+    ) -> R {
+        if self.pointwise() {
+            return f(img);
+        }
+        with_scratch(COLS, self.patch() * out.0 * out.1, |scratch| {
+            self.im2col(img, hw, out, scratch);
+            f(scratch)
+        })
+    }
+
     /// The output `[n, c_out, h_out, w_out]` of `x` `[n, c_in, h, w]`.
     pub fn forward(&self, x: &[f32], n: usize, (h, w): (usize, usize)) -> Vec<f32> {
         let (ho, wo) = self.out_size(h, w).expect("the kernel fits the input");
@@ -207,13 +226,7 @@ impl ConvPack {
             .enumerate()
             .for_each(|(i, out)| {
                 let img = &x[i * self.c_in * h * w..(i + 1) * self.c_in * h * w];
-                with_scratch(COLS, kk * p, |scratch| {
-                    let cols: &[f32] = if self.pointwise() {
-                        img
-                    } else {
-                        self.im2col(img, (h, w), (ho, wo), scratch);
-                        scratch
-                    };
+                self.with_cols(img, (h, w), (ho, wo), |cols| {
                     sgemm(
                         self.c_out,
                         p,
@@ -263,13 +276,7 @@ impl ConvPack {
             let db: Vec<f32> = dz.chunks_exact(p).map(|row| row.iter().sum()).collect();
             let img = &x[i * in_len..(i + 1) * in_len];
             let mut dw = vec![0f32; self.c_out * kk];
-            with_scratch(COLS, kk * p, |scratch| {
-                let cols: &[f32] = if self.pointwise() {
-                    img
-                } else {
-                    self.im2col(img, (h, w), (ho, wo), scratch);
-                    scratch
-                };
+            self.with_cols(img, (h, w), (ho, wo), |cols| {
                 // dW [c_out, K] = dz [c_out, P] · colsᵀ [P, K].
                 sgemm(
                     self.c_out,

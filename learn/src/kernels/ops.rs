@@ -373,9 +373,19 @@ pub fn dense_silu(x: Tensor<2>, layer: &Linear) -> Option<Tensor<2>> {
         },
         z: Arc::new(z),
     };
-    let guards = graph_nodes(&prims);
-    let guards: [_; 3] = guards.try_into().expect("three inputs");
-    let ad = match DenseBackward
+    Some(track(DenseBackward, &prims, state, out))
+}
+
+/// `out`, computed from the three tracked inputs `prims`, as an autodiff
+/// tensor whose backward step is `op` with `state`.
+fn track<const D: usize, B: Backward<Flex, 3>>(
+    op: B,
+    prims: &[Prim],
+    state: B::State,
+    out: FlexTensor,
+) -> Tensor<D> {
+    let guards: [_; 3] = graph_nodes(prims).try_into().expect("three inputs");
+    let ad = match op
         .prepare::<NoCheckpointing>(guards)
         .compute_bound()
         .stateful()
@@ -383,7 +393,7 @@ pub fn dense_silu(x: Tensor<2>, layer: &Linear) -> Option<Tensor<2>> {
         OpsKind::Tracked(prep) => prep.finish(state, out),
         OpsKind::UnTracked(prep) => prep.finish(out),
     };
-    Some(Tensor::from_primitive::<Ad>(ad))
+    Tensor::from_primitive::<Ad>(ad)
 }
 
 #[derive(Clone, Debug)]
@@ -484,15 +494,5 @@ pub fn conv2d(x: Tensor<4>, conv: &Conv2d, slope: Option<f32>) -> Option<Tensor<
         n,
         hw: (h, w),
     };
-    let guards = graph_nodes(&prims);
-    let guards: [_; 3] = guards.try_into().expect("three inputs");
-    let ad = match ConvBackward
-        .prepare::<NoCheckpointing>(guards)
-        .compute_bound()
-        .stateful()
-    {
-        OpsKind::Tracked(prep) => prep.finish(state, out),
-        OpsKind::UnTracked(prep) => prep.finish(out),
-    };
-    Some(Tensor::from_primitive::<Ad>(ad))
+    Some(track(ConvBackward, &prims, state, out))
 }
