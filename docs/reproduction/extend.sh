@@ -13,26 +13,15 @@
 set -euo pipefail
 BIN=${BIN:-target/release/deepfoids}
 OUT=${OUT:-runs/variants}
+source "$(dirname "$0")/protocol.sh"
 profile=$1 scene=$2 from=$3 start=$4 end=$5
 base=${from%-t*m}
 prev=$from
 for ((m = start + 1; m <= end; m++)); do
     run=$base-t${m}m
     echo "== $run ($(date +%T))"
-    if [[ ! -f $OUT/$run/final/state.json ]]; then
-        resume=()
-        [[ -d $OUT/$run ]] && resume=(--resume)
-        "$BIN" train --reward-profile "$profile" --scene "$scene" --phase transfer \
-            --steps 1000000 --run-id "$run" --runs-dir "$OUT" --eval-seconds 0 --quiet \
-            --init-from "$OUT/$prev" "${resume[@]}"
-    fi
-    for seed in 11 12; do
-        dir=$OUT/eval-$run-$scene-s$seed
-        [[ -f $dir/summary.json ]] && continue
-        "$BIN" eval --reward-profile "$profile" --scene "$scene" --phase transfer \
-            --policy "$OUT/$run" --stochastic --seed "$seed" --warmup 10 --seconds 60 \
-            --out "$dir" >/dev/null
-    done
+    train "$profile" "$scene" transfer 1000000 "$run" "$prev"
+    evaluate "$profile" "$scene" transfer "$run"
     prev=$run
 done
 echo "== done ($(date +%T))"

@@ -16,25 +16,7 @@ PRE=${PRE:-600000}
 TRANSFER=${TRANSFER:-300000}
 TAG=${TAG:-}
 mkdir -p "$OUT"
-train() { # profile scene phase steps run [init]
-    local profile=$1 scene=$2 phase=$3 steps=$4 run=$5 init=${6:-}
-    if [[ -f $OUT/$run/final/state.json ]]; then return; fi
-    local resume=()
-    [[ -d $OUT/$run ]] && resume=(--resume)
-    "$BIN" train --reward-profile "$profile" --scene "$scene" --phase "$phase" \
-        --steps "$steps" --run-id "$run" --runs-dir "$OUT" --eval-seconds 0 --quiet \
-        ${init:+--init-from "$OUT/$init"} "${resume[@]}"
-}
-evaluate() { # profile scene phase run
-    local profile=$1 scene=$2 phase=$3 run=$4
-    for seed in 11 12; do
-        local dir=$OUT/eval-$run-$scene-s$seed
-        [[ -f $dir/summary.json ]] && continue
-        "$BIN" eval --reward-profile "$profile" --scene "$scene" --phase "$phase" \
-            --policy "$OUT/$run" --stochastic --seed "$seed" --warmup 10 --seconds 60 \
-            --out "$dir" >/dev/null
-    done
-}
+source "$(dirname "$0")/protocol.sh"
 for p in "$@"; do
     pre=$p$TAG-pre
     echo "== $p: pretraining ($(date +%T))"
