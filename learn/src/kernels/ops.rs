@@ -106,6 +106,15 @@ fn values(t: &FlexTensor) -> Cow<'_, [f32]> {
     }
 }
 
+/// `t` with its values laid out row-major (a cheap handle when they are).
+fn contiguous(t: &FlexTensor) -> FlexTensor {
+    if t.is_contiguous() {
+        t.clone()
+    } else {
+        t.to_contiguous()
+    }
+}
+
 fn flex(values: Vec<f32>, shape: &[usize]) -> FlexTensor {
     FlexTensor::from_data(TensorData::new(values, shape.to_vec()))
 }
@@ -259,14 +268,7 @@ pub fn encode_with(
         pack.sparse_below_dense = below;
     }
     let grid_data = match grids {
-        Grids::Dense(_) => {
-            let t = prims[0].flex();
-            GridsData::Dense(if t.is_contiguous() {
-                t.clone()
-            } else {
-                t.to_contiguous()
-            })
-        }
+        Grids::Dense(_) => GridsData::Dense(contiguous(prims[0].flex())),
         Grids::Compact(c) => GridsData::Compact(c.clone()),
     };
     drop(vals);
@@ -363,14 +365,9 @@ pub fn dense_silu(x: Tensor<2>, layer: &Linear) -> Option<Tensor<2>> {
     if !tracked {
         return Some(Tensor::from_primitive::<Flex>(out));
     }
-    let x = prims[0].flex();
     let state = DenseState {
         pack: Arc::new(pack),
-        x: if x.is_contiguous() {
-            x.clone()
-        } else {
-            x.to_contiguous()
-        },
+        x: contiguous(prims[0].flex()),
         z: Arc::new(z),
     };
     Some(track(DenseBackward, &prims, state, out))
@@ -480,13 +477,6 @@ pub fn conv2d(x: Tensor<4>, conv: &Conv2d, slope: Option<f32>) -> Option<Tensor<
     if !tracked {
         return Some(Tensor::from_primitive::<Flex>(out));
     }
-    let contiguous = |t: &FlexTensor| {
-        if t.is_contiguous() {
-            t.clone()
-        } else {
-            t.to_contiguous()
-        }
-    };
     let state = ConvState {
         pack: Arc::new(pack),
         x: contiguous(prims[0].flex()),
