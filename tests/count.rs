@@ -143,6 +143,38 @@ fn detector_trains_and_counts_end_to_end() {
         text(&ev)
     );
     assert!(det.join("eval/evaluation.json").is_file());
+    // --calibrate lets the val frames choose and writes the detector with
+    // that confidence; `count` then takes it as its default.
+    let cal = det.join("calibrated");
+    let calibrated = cli_ok(&format!(
+        "train-detector --data {} --out {} --view-size 256 --eval {} --calibrate",
+        data.display(),
+        cal.display(),
+        det.join("detector.onnx").display()
+    ));
+    let chosen = json(&cal.join("evaluation.json"))["conf"].as_f64().unwrap() as f32;
+    assert!(
+        text(&calibrated).contains("(the least clip error on these frames)")
+            && text(&calibrated).contains(&format!(
+                "with confidence {chosen} (chosen on these 2 frames)"
+            )),
+        "{}",
+        text(&calibrated)
+    );
+    let c = cli_ok(&format!(
+        "count {} --detector {} --view-size 256 --max-frames 1 --quiet",
+        data.join("images").to_str().unwrap(),
+        cal.join("detector.onnx").to_str().unwrap(),
+    ));
+    assert!(
+        text(&c)
+            .lines()
+            .next()
+            .unwrap_or("")
+            .contains(&format!("confidence {chosen}")),
+        "{}",
+        text(&c)
+    );
     let first_line = String::from_utf8_lossy(&o.stdout)
         .lines()
         .next()
@@ -234,7 +266,8 @@ fn detector_trains_and_counts_end_to_end() {
 /// from its card), 49 once `count` took the whole view's local contrast; the
 /// session-31 one (faint fish trained as water) counts 42 (57 on today's
 /// render of that frame); the session-35 one (8,000 steps on 665 frames,
-/// confidence 0.35) counts 41 of the 50, all of which lie in its 120° view.
+/// confidence 0.35) counted 41 of the 50, all of which lie in its 120° view;
+/// the session-47 one (28,000 steps of the same recipe, 0.35) counts 46.
 /// Between 40 and 62 (±20 % of the visible) passes; a detector that stops seeing fish, or sees them everywhere, does not.
 #[test]
 fn the_shipped_detector_counts_a_clear_school() {

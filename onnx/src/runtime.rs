@@ -167,6 +167,30 @@ pub fn read_metadata(bytes: &[u8]) -> HashMap<String, String> {
         .unwrap_or_default()
 }
 
+/// The ModelProto `bytes` (read from `path`) with the metadata entries `set`
+/// put in: an entry of the same key is replaced, a new key is appended, and
+/// the rest of the file (graph, weights, other entries) is re-encoded as
+/// decoded with tract's message types, which declare the whole of onnx.proto.
+pub fn with_metadata(bytes: &[u8], path: &Path, set: &[(String, String)]) -> Result<Vec<u8>> {
+    use prost::Message;
+    let mut model = tract_onnx::pb::ModelProto::decode(bytes).map_err(|e| OnnxError::NotOnnx {
+        path: path.to_path_buf(),
+        why: e.to_string(),
+    })?;
+    for (key, value) in set {
+        match model.metadata_props.iter_mut().find(|p| &p.key == key) {
+            Some(p) => p.value.clone_from(value),
+            None => model
+                .metadata_props
+                .push(tract_onnx::pb::StringStringEntryProto {
+                    key: key.clone(),
+                    value: value.clone(),
+                }),
+        }
+    }
+    Ok(model.encode_to_vec())
+}
+
 impl Policy for OnnxPolicy {
     fn name(&self) -> String {
         self.path
@@ -214,4 +238,48 @@ pub fn check_species(policy: &OnnxPolicy, env: &Env) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use prost::Message;
+    use tract_onnx::pb::{GraphProto, ModelProto, StringStringEntryProto};
+
+    /// Entries a=1, b=2 and a graph named "g"; putting in b=3 and c=4
+    /// replaces b in place, appends c, and keeps a and the graph.
+    #[test]
+    fn metadata_is_replaced_by_key_and_the_rest_kept() {
+        let entry = |k: &str, v: &str| StringStringEntryProto {
+            key: k.into(),
+            value: v.into(),
+        };
+        let model = ModelProto {
+            ir_version: 8,
+            graph: Some(GraphProto {
+                name: "g".into(),
+                ..Default::default()
+            }),
+            metadata_props: vec![entry("a", "1"), entry("b", "2")],
+            ..Default::default()
+        };
+        let set = [("b".to_string(), "3".to_string()), ("c".into(), "4".into())];
+        let out = with_metadata(&model.encode_to_vec(), Path::new("m.onnx"), &set).unwrap();
+        let back = ModelProto::decode(out.as_slice()).unwrap();
+        let props: Vec<(&str, &str)> = back
+            .metadata_props
+            .iter()
+            .map(|p| (p.key.as_str(), p.value.as_str()))
+            .collect();
+        assert_eq!(props, [("a", "1"), ("b", "3"), ("c", "4")]);
+        assert_eq!(
+            (back.ir_version, back.graph.unwrap().name.as_str()),
+            (8, "g")
+        );
+        let err = with_metadata(b"not onnx", Path::new("x.onnx"), &set).unwrap_err();
+        assert!(
+            err.to_string().contains("x.onnx is not an ONNX model"),
+            "{err}"
+        );
+    }
 }

@@ -60,6 +60,10 @@ pub struct TrainDetectorArgs {
     /// Do not train: score this detector on the val split of --data (mAP50, count error per clip)
     #[arg(long, value_name = "X.onnx")]
     pub eval: Option<PathBuf>,
+    /// With --eval: let these val frames choose the confidence (not the detector's) and write
+    /// OUT/detector.onnx, the detector with that confidence as `count`'s default
+    #[arg(long, requires = "eval")]
+    pub calibrate: bool,
 }
 
 pub fn run(args: &TrainDetectorArgs) -> Result<()> {
@@ -99,7 +103,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
     if let Some(onnx) = &args.eval {
         print!(
             "{}",
-            score_detector(onnx, &data.val, &cfg.count, &args.out)?
+            score_detector(onnx, &data.val, &cfg.count, &args.out, args.calibrate)?
         );
         return Ok(());
     }
