@@ -91,10 +91,22 @@ fn detector_trains_and_counts_end_to_end() {
     );
     let det = tmp("det");
     let o = cli_ok(&format!(
-        "train-detector --data {} --out {} --steps 40 --batch 4 --crop 64 --base 4 --view-size 256",
+        "train-detector --data {} --out {} --steps 40 --batch 4 --crop 64 --base 4 --view-size 256 --checkpoint-every 20",
         data.display(),
         det.display()
     ));
+    // A checkpoint at step 20 (none at the end: the run is whole), and
+    // --resume holds a run to the settings it was trained with.
+    let state = json(&det.join("checkpoint/state.json"));
+    assert_eq!(state["step"], 20, "{state}");
+    cli_fails(
+        &format!(
+            "train-detector --data {} --out {} --steps 50 --batch 4 --crop 64 --base 4 --view-size 256 --resume",
+            data.display(),
+            det.display()
+        ),
+        "was trained with steps = 40, this run has 50",
+    );
     let t = text(&o);
     assert!(
         t.contains("4 train frames") && t.contains("2 val frames"),

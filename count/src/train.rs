@@ -29,13 +29,17 @@ use crate::export::export_detector;
 use crate::frames::read_image;
 use crate::model::{DetectorNet, DetectorNetConfig, NORM_EPS, NORM_KERNEL, STRIDE, STRIDES};
 use crate::preprocess::{InputCamera, PerspectiveView, local_contrast, median_blur};
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 use burn::tensor::activation::log_sigmoid;
 use deepfoids_io::write_atomic;
+use deepfoids_learn::LearnError;
+use deepfoids_learn::checkpoint::{
+    load_json, load_module, replace_dir_atomic, save_json, save_module,
+};
 use deepfoids_onnx::runtime::{OnnxError, with_metadata};
 use image::RgbImage;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -70,6 +74,17 @@ pub struct TrainConfig {
     /// otherwise they are ignored (neither positives nor negatives); true
     /// (on held-out clips the count error fell from 30.5 to 8.2 fish a frame).
     pub faint_as_water: bool,
+    /// Write `checkpoint/` (weights, Adam's state, the crop sampler's state)
+    /// every this many steps, and whenever the run stops early (0: only
+    /// then); 1000 (about two minutes of the shipped recipe).
+    pub checkpoint_every: usize,
+    /// Stop once this many steps of the schedule are done, checkpointing as a
+    /// `minutes` limit does (0: run to `steps`): splits a run into parts that
+    /// `resume` joins into the same bits as one run; 0.
+    pub stop_at: usize,
+    /// Continue from `checkpoint/` of the output folder (its schedule must be
+    /// this one's) instead of starting afresh; false.
+    pub resume: bool,
 }
 
 impl TrainConfig {
@@ -107,8 +122,89 @@ impl Default for TrainConfig {
             count: CountConfig::default(),
             max_frames: 0,
             faint_as_water: true,
+            checkpoint_every: 1000,
+            stop_at: 0,
+            resume: false,
         }
     }
+}
+
+/// What a checkpoint must share with the run that resumes it: everything that
+/// shapes the network, the crops and the learning-rate schedule.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct Schedule {
+    steps: usize,
+    batch: usize,
+    crop: u32,
+    lr: f64,
+    base: usize,
+    stride: usize,
+    seed: u64,
+    max_frames: usize,
+    faint_as_water: bool,
+    train_frames: usize,
+}
+
+impl Schedule {
+    fn of(cfg: &TrainConfig, data: &Data) -> Self {
+        Self {
+            steps: cfg.steps,
+            batch: cfg.batch,
+            crop: cfg.crop,
+            lr: cfg.lr,
+            base: cfg.base,
+            stride: cfg.stride,
+            seed: cfg.seed,
+            max_frames: cfg.max_frames,
+            faint_as_water: cfg.faint_as_water,
+            train_frames: data.train.len(),
+        }
+    }
+
+    /// The first field in which `self` (the checkpoint's) and `now` differ,
+    /// as (name, checkpoint's value, now).
+    fn first_difference(&self, now: &Self) -> Option<(&'static str, String, String)> {
+        let (a, b) = (
+            serde_json::to_value(self).unwrap_or_default(),
+            serde_json::to_value(now).unwrap_or_default(),
+        );
+        let names = [
+            "steps",
+            "batch",
+            "crop",
+            "lr",
+            "base",
+            "stride",
+            "seed",
+            "max_frames",
+            "faint_as_water",
+            "train_frames",
+        ];
+        names
+            .into_iter()
+            .find(|n| a[n] != b[n])
+            .map(|n| (n, a[n].to_string(), b[n].to_string()))
+    }
+}
+
+/// `checkpoint/state.json`: where a stopped run stands.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct CheckpointState {
+    /// Steps done.
+    step: usize,
+    /// The crop sampler's state.
+    rng: u64,
+    /// The first step's loss and the smoothed loss so far.
+    first_loss: f64,
+    smoothed_loss: f64,
+    /// Training seconds so far, over every part of the run.
+    seconds: f64,
+    schedule: Schedule,
+}
+
+/// The folder of a run's checkpoint.
+pub fn checkpoint_dir(out: &Path) -> PathBuf {
+    out.join("checkpoint")
 }
 
 /// A pre-processed frame and its fish boxes (pixels of the processed image).
@@ -577,11 +673,46 @@ pub fn train(
         .init(&dev);
     let mut optim = AdamConfig::new().init();
     let mut rng = Rng(cfg.seed ^ 0xC0FF_EE00);
+    let schedule = Schedule::of(cfg, data);
+    let (mut last, mut first, mut before, mut step0) = (0.0, 0.0, 0.0, 0);
+    if cfg.resume {
+        let state;
+        (model, optim, state) = load_checkpoint(out, model, optim, &schedule)?;
+        (rng, first, last, before, step0) = (
+            Rng(state.rng),
+            state.first_loss,
+            state.smoothed_loss,
+            state.seconds,
+            state.step,
+        );
+        log(&format!(
+            "resumed from {} at step {step0} ({before:.0} s trained)",
+            checkpoint_dir(out).display()
+        ));
+    }
     let start = Instant::now();
-    let (mut last, mut first) = (0.0, 0.0);
-    let mut steps = 0;
-    for step in 0..cfg.steps {
-        if cfg.minutes > 0.0 && start.elapsed().as_secs_f64() > cfg.minutes * 60.0 {
+    let checkpoint =
+        |step: usize, model: &DetectorNet, optim: &ModuleOptimizer, rng: &Rng, first, last| {
+            let state = CheckpointState {
+                step,
+                rng: rng.0,
+                first_loss: first,
+                smoothed_loss: last,
+                seconds: before + start.elapsed().as_secs_f64(),
+                schedule: schedule.clone(),
+            };
+            save_checkpoint(out, model, optim, &state)
+        };
+    let mut steps = step0;
+    for step in step0..cfg.steps {
+        let out_of_time = cfg.minutes > 0.0 && start.elapsed().as_secs_f64() > cfg.minutes * 60.0;
+        if out_of_time || (cfg.stop_at > 0 && step >= cfg.stop_at) {
+            checkpoint(step, &model, &optim, &rng, first, last)?;
+            log(&format!(
+                "stopped at step {step} of {}; `--resume` continues from {}",
+                cfg.steps,
+                checkpoint_dir(out).display()
+            ));
             break;
         }
         let [x, ht, bt, mk, wt] = sample_batch(data, cfg, &mut rng, &dev);
@@ -590,7 +721,12 @@ pub fn train(
         let value = total.clone().into_scalar::<f32>() as f64;
         if !value.is_finite() {
             return Err(CountError::Train(format!(
-                "the loss is {value} at step {step}"
+                "the loss is {value} at step {step}{}",
+                if step >= cfg.checkpoint_every.max(1) {
+                    "; the last checkpoint is from before it"
+                } else {
+                    ""
+                }
             )));
         }
         let grads = GradientsParams::from_grads(total.backward(), &model);
@@ -610,11 +746,14 @@ pub fn train(
                 "step {step}: loss {value:.4} (focal {:.4}, box {:.4}), smoothed {last:.4}, lr {lr:.2e}, {:.0} s",
                 focal.into_scalar::<f32>(),
                 l1.into_scalar::<f32>(),
-                start.elapsed().as_secs_f64()
+                before + start.elapsed().as_secs_f64()
             ));
         }
+        if cfg.checkpoint_every > 0 && steps % cfg.checkpoint_every == 0 && steps < cfg.steps {
+            checkpoint(steps, &model, &optim, &rng, first, last)?;
+        }
     }
-    let seconds = start.elapsed().as_secs_f64();
+    let seconds = before + start.elapsed().as_secs_f64();
     model
         .clone()
         .save_file(out.join("model.bpk"))
@@ -689,6 +828,60 @@ pub fn train(
         &serde_json::json!({"report": report, "config": cfg}),
     )?;
     Ok(report)
+}
+
+/// Write `out/checkpoint/` whole or not at all: the weights (`model.bpk`),
+/// Adam's moments (`optim.bpk`) and `state.json`.
+fn save_checkpoint(
+    out: &Path,
+    model: &DetectorNet,
+    optim: &ModuleOptimizer,
+    state: &CheckpointState,
+) -> Result<()> {
+    let dir = checkpoint_dir(out);
+    replace_dir_atomic(&dir, |tmp| {
+        save_module(model, &tmp.join("model.bpk"))?;
+        let of = tmp.join("optim.bpk");
+        optim.save(&of).map_err(|e| LearnError::Record {
+            action: "save",
+            path: of.clone(),
+            reason: format!("{e:?}"),
+        })?;
+        save_json(&tmp.join("state.json"), state)
+    })
+    .map_err(|e| CountError::Train(format!("cannot write {}: {e}", dir.display())))
+}
+
+/// The run of `out/checkpoint/` loaded into `model` and `optim`, if its
+/// schedule is `now`; else an error naming the field that differs.
+fn load_checkpoint(
+    out: &Path,
+    model: DetectorNet,
+    optim: ModuleOptimizer,
+    now: &Schedule,
+) -> Result<(DetectorNet, ModuleOptimizer, CheckpointState)> {
+    let dir = checkpoint_dir(out);
+    if !dir.join("state.json").is_file() {
+        return Err(CountError::Train(format!(
+            "--resume: {} holds no checkpoint (state.json); train without --resume to start afresh",
+            dir.display()
+        )));
+    }
+    let learn = |e: LearnError| CountError::Train(format!("--resume: {e}"));
+    let state: CheckpointState =
+        load_json(&dir.join("state.json"), "a detector checkpoint").map_err(learn)?;
+    if let Some((field, then, now)) = state.schedule.first_difference(now) {
+        return Err(CountError::Train(format!(
+            "--resume: {} was trained with {field} = {then}, this run has {now}; resume with the same settings and data (only --minutes may change)",
+            dir.display()
+        )));
+    }
+    let model = load_module(model, &dir.join("model.bpk")).map_err(learn)?;
+    let of = dir.join("optim.bpk");
+    let optim = optim
+        .load(&of)
+        .map_err(|e| CountError::Train(format!("--resume: cannot load {}: {e:?}", of.display())))?;
+    Ok((model, optim, state))
 }
 
 /// One minibatch of `cfg.batch` random crops of the training frames: the
@@ -1271,5 +1464,126 @@ mod tests {
         let f = faint_boxes(&mask, 5, 3, &ids);
         assert_eq!(f.len(), 1);
         assert_eq!((f[0].x0, f[0].y0, f[0].x1, f[0].y1), (4.0, 0.0, 5.0, 1.0));
+    }
+}
+
+#[cfg(test)]
+mod resume_tests {
+    use super::*;
+
+    /// Two 64-px frames of dark water with three bright 6 × 3 px "fish".
+    fn data() -> Data {
+        let frame = |shift: u32| {
+            let mut img = RgbImage::from_pixel(64, 64, image::Rgb([20, 40, 60]));
+            let mut boxes = vec![];
+            for (i, (x, y)) in [(10, 12), (30, 40), (48, 20)].into_iter().enumerate() {
+                let (x, y) = (x + shift, y + i as u32);
+                for dy in 0..3 {
+                    for dx in 0..6 {
+                        img.put_pixel(x + dx, y + dy, image::Rgb([200, 210, 220]));
+                    }
+                }
+                boxes.push(Detection::from_centre(
+                    x as f32 + 3.0,
+                    y as f32 + 1.5,
+                    6.0,
+                    3.0,
+                    1.0,
+                ));
+            }
+            Sample {
+                image: img,
+                visibility: vec![1.0; boxes.len()],
+                boxes,
+                ignore: vec![],
+                faint: vec![],
+                clip: format!("c{shift}"),
+            }
+        };
+        Data {
+            train: vec![frame(0), frame(5)],
+            val: vec![],
+        }
+    }
+
+    fn cfg(stop_at: usize, resume: bool) -> TrainConfig {
+        TrainConfig {
+            steps: 12,
+            batch: 2,
+            crop: 32,
+            base: 2,
+            checkpoint_every: 4,
+            stop_at,
+            resume,
+            ..TrainConfig::default()
+        }
+    }
+
+    fn dir(name: &str) -> PathBuf {
+        let d =
+            std::env::temp_dir().join(format!("deepfoids-resume-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    /// A run stopped at step 6 (between the checkpoints of steps 4 and 8) and
+    /// resumed ends with the same weights, bit for bit, and the same smoothed
+    /// loss as one run of 12 steps; a resume with another schedule is refused
+    /// by the field's name, and one with no checkpoint by the folder's.
+    #[test]
+    fn a_stopped_run_resumed_ends_as_one_run() {
+        let (data, one, split) = (data(), dir("one"), dir("split"));
+        let whole = train(&data, &cfg(0, false), &one, |_| {}).unwrap();
+        let part = train(&data, &cfg(6, false), &split, |_| {}).unwrap();
+        assert_eq!(part.steps, 6);
+        let state: CheckpointState =
+            load_json(&split.join("checkpoint/state.json"), "state").unwrap();
+        assert_eq!(state.step, 6);
+        let other = TrainConfig {
+            lr: 1e-3,
+            ..cfg(0, true)
+        };
+        let err = train(&data, &other, &split, |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("lr = 0.002, this run has 0.001"), "{err}");
+        let rest = train(&data, &cfg(0, true), &split, |_| {}).unwrap();
+        assert_eq!(rest.steps, 12);
+        assert_eq!(rest.final_loss, whole.final_loss);
+        assert_eq!(rest.first_loss, whole.first_loss);
+        // The files also hold Burn's random parameter ids: compare what the
+        // two networks compute, to the bit.
+        let device = Device::flex();
+        let outputs = |d: &Path| {
+            let net = DetectorNetConfig::new().with_base(2).init(&device);
+            let net = load_module(net, &d.join("model.bpk")).unwrap();
+            let x = Tensor::<4>::from_data(
+                TensorData::new(
+                    data.train[0]
+                        .image
+                        .as_raw()
+                        .iter()
+                        .map(|&v| v as f32 / 255.0)
+                        .collect::<Vec<_>>(),
+                    [1, 64, 64, 3],
+                ),
+                &device,
+            )
+            .permute([0, 3, 1, 2]);
+            let (heat, boxes) = net.forward(x);
+            [heat, boxes].map(|t| t.into_data().try_to_vec::<f32>().unwrap())
+        };
+        assert!(
+            outputs(&one) == outputs(&split),
+            "the resumed weights differ"
+        );
+        let none = dir("none");
+        let err = train(&data, &cfg(0, true), &none, |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("holds no checkpoint"), "{err}");
+        for d in [one, split, none] {
+            let _ = std::fs::remove_dir_all(d);
+        }
     }
 }

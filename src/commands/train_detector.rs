@@ -13,7 +13,7 @@ pub struct TrainDetectorArgs {
     /// `deepfoids render` output folders (split by clip: their val clips are held out)
     #[arg(long, value_name = "DIR", num_args = 1.., required = true)]
     pub data: Vec<PathBuf>,
-    /// Output folder: detector.onnx, model.bpk (Burn), report.json
+    /// Output folder: detector.onnx, model.bpk (Burn), report.json, checkpoint/
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Optimiser steps
@@ -54,6 +54,14 @@ pub struct TrainDetectorArgs {
     /// Ignore the fish too faint for the renderer to label (neither fish nor water) instead of training them as water
     #[arg(long)]
     pub ignore_faint: bool,
+    /// Write OUT/checkpoint (weights, Adam's state, the crop sampler's) every this many steps and
+    /// whenever the run stops early (0: only then)
+    #[arg(long, default_value_t = TrainConfig::default().checkpoint_every)]
+    pub checkpoint_every: usize,
+    /// Continue the run of OUT/checkpoint (same settings and data; --minutes may differ): a
+    /// killed or --minutes-limited run ends as one run would have
+    #[arg(long, conflicts_with = "eval")]
+    pub resume: bool,
     /// No progress lines
     #[arg(long)]
     pub quiet: bool,
@@ -81,6 +89,8 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         seed: args.seed,
         max_frames: args.max_frames,
         faint_as_water: !args.ignore_faint,
+        checkpoint_every: args.checkpoint_every,
+        resume: args.resume,
         ..TrainConfig::default()
     };
     cfg.count.view_fov_deg = args.view_fov;
