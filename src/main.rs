@@ -10,6 +10,16 @@ use std::process::ExitCode;
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> ExitCode {
+    #[cfg(unix)]
+    // SAFETY: called first, before any thread or output exists; SIG_DFL is
+    // the disposition every Unix tool starts with.
+    unsafe {
+        // Rust starts with SIGPIPE ignored, so a write to a closed pipe
+        // (`deepfoids count … | head`) returns an error that `println!`
+        // panics on; with the default the process ends quietly, as `cat`
+        // and `grep` do.
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     match deepfoids::cli::run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
