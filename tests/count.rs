@@ -196,6 +196,24 @@ fn detector_trains_and_counts_end_to_end() {
         first_line.contains(&format!("confidence {conf}")),
         "{first_line}"
     );
+    // The coarse pass is named on the first line; piped into `head`, `count`
+    // stops quietly once head has read enough (no panic on the closed pipe).
+    let piped = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "'{}' count '{}' --detector '{}' --view-size 256 --coarse 64 | head -n 1",
+            env!("CARGO_BIN_EXE_deepfoids"),
+            data.join("images").display(),
+            det.join("detector.onnx").display()
+        ))
+        .output()
+        .unwrap();
+    assert!(
+        text(&piped).contains("coarse pass for fish of 64 px and longer")
+            && !text(&piped).contains("panicked"),
+        "{}",
+        text(&piped)
+    );
     let out = tmp("out");
     let o = cli_ok(&format!(
         "count {} --detector {} --view-size 256 --conf 0.3 --out {} --annotate 3",

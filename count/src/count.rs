@@ -35,6 +35,11 @@ pub struct CountConfig {
     pub iou: f32,
     /// A box within this many pixels of an inner window edge counts as cut by it; 3.
     pub edge_margin: f32,
+    /// The coarse pass: the view is also searched at half its size, and of
+    /// what that finds the boxes whose longer side (in the view) is at least
+    /// this many pixels join the NMS — fish close to the camera, longer than
+    /// the detector's 135-px receptive field sees whole; 0: no coarse pass.
+    pub coarse_min_px: f32,
 }
 
 impl Default for CountConfig {
@@ -49,6 +54,7 @@ impl Default for CountConfig {
             conf: 0.5,
             iou: 0.5,
             edge_margin: 3.0,
+            coarse_min_px: 0.0,
         }
     }
 }
@@ -105,6 +111,13 @@ impl CountConfig {
         }
         if !(0.0..=1.0).contains(&self.iou) {
             return bad("--iou", "in [0, 1]", self.iou.to_string());
+        }
+        if !(self.coarse_min_px >= 0.0 && self.coarse_min_px.is_finite()) {
+            return bad(
+                "--coarse",
+                "0 (off) or a length in pixels",
+                self.coarse_min_px.to_string(),
+            );
         }
         if (self.median.is_multiple_of(2) && self.median > 0) || self.median > 15 {
             return bad("--median", "odd, 1 to 15", self.median.to_string());
@@ -178,6 +191,29 @@ impl Counter {
 
     /// Detections on an already pre-processed image (its pixels).
     pub fn detect(&self, view: &RgbImage) -> Result<(Vec<Detection>, usize)> {
+        let (mut found, mut n) = self.detect_at_scale(view)?;
+        if self.config.coarse_min_px > 0.0 {
+            let (w, h) = view.dimensions();
+            let half = image::imageops::resize(
+                view,
+                (w / 2).max(1),
+                (h / 2).max(1),
+                image::imageops::FilterType::Triangle,
+            );
+            let (coarse, m) = self.detect_at_scale(&half)?;
+            let scale = (
+                w as f32 / half.width() as f32,
+                h as f32 / half.height() as f32,
+            );
+            found.extend(coarse_boxes(coarse, scale, self.config.coarse_min_px));
+            n += m;
+        }
+        Ok((nms(found, self.config.iou), n))
+    }
+
+    /// The detections of every window of `view` (each window's own NMS is
+    /// the caller's), and how many windows.
+    fn detect_at_scale(&self, view: &RgbImage) -> Result<(Vec<Detection>, usize)> {
         let c = &self.config;
         let (w, h) = view.dimensions();
         let wins = windows(w, h, c.window, c.step);
@@ -206,7 +242,7 @@ impl Counter {
                     .collect())
             })
             .collect::<Result<_>>()?;
-        Ok((nms(per_window.concat(), c.iou), wins.len()))
+        Ok((per_window.concat(), wins.len()))
     }
 
     /// One frame through the whole pipeline.
@@ -221,6 +257,26 @@ impl Counter {
             windows: n,
         })
     }
+}
+
+/// The coarse pass's detections (found on the view at half size) in the
+/// view's pixels (`scale`: view over half size, per axis), keeping those
+/// whose longer side is at least `min_px` there.
+pub fn coarse_boxes(
+    coarse: Vec<Detection>,
+    (sx, sy): (f32, f32),
+    min_px: f32,
+) -> impl Iterator<Item = Detection> {
+    coarse
+        .into_iter()
+        .map(move |d| Detection {
+            x0: d.x0 * sx,
+            y0: d.y0 * sy,
+            x1: d.x1 * sx,
+            y1: d.y1 * sy,
+            ..d
+        })
+        .filter(move |d| (d.x1 - d.x0).max(d.y1 - d.y0) >= min_px)
 }
 
 /// The counts of a video and the estimates made from them.
@@ -396,5 +452,25 @@ mod tests {
         assert_eq!(s.line(), "estimate: 9 fish (max over 5 frames)");
         let s = Summary::of(vec![1, 2, 3, 4]);
         assert_eq!((s.median, s.p90), (2.5, 4));
+    }
+
+    /// Found at half size: a 10 × 20 box at (5, 5) and a 40 × 30 one at
+    /// (100, 50). In an 832 × 832 view searched at 416 × 416 (scale 2) they
+    /// are 20 × 40 at (10, 10) and 80 × 60 at (200, 100); with 64 px as the
+    /// least longer side only the second stays, score kept.
+    #[test]
+    fn coarse_boxes_by_hand() {
+        let found = vec![
+            Detection::from_centre(10.0, 15.0, 10.0, 20.0, 0.9),
+            Detection::from_centre(120.0, 65.0, 40.0, 30.0, 0.6),
+        ];
+        let kept: Vec<Detection> = coarse_boxes(found.clone(), (2.0, 2.0), 64.0).collect();
+        assert_eq!(kept.len(), 1);
+        let d = kept[0];
+        assert_eq!(
+            (d.x0, d.y0, d.x1, d.y1, d.score),
+            (200.0, 100.0, 280.0, 160.0, 0.6)
+        );
+        assert_eq!(coarse_boxes(found, (2.0, 2.0), 40.0).count(), 2);
     }
 }

@@ -1157,14 +1157,17 @@ pub fn evaluate(
 /// CSV row per clip). With `calibrate` the frames choose the confidence
 /// ([`choose_conf`]) whatever the detector's, and `out/detector.onnx` is
 /// `onnx` with that confidence in its metadata (`confidence`, and
-/// `calibration_frames`: how many frames chose it), graph and weights as they
-/// were: a user fits `count`'s default to their own labelled frames.
+/// `calibration_frames`: how many frames chose it) and the coarse pass it was
+/// chosen with (`coarse_min_px`), graph and weights as they were: a user fits
+/// `count`'s defaults to their own labelled frames. `coarse` is `count`'s
+/// `--coarse` (`None`: the detector's own, else off).
 pub fn score_detector(
     onnx: &Path,
     val: &[Sample],
     cfg: &CountConfig,
     out: &Path,
     calibrate: bool,
+    coarse: Option<f32>,
 ) -> Result<String> {
     if val.is_empty() {
         return Err(CountError::Train(
@@ -1173,6 +1176,13 @@ pub fn score_detector(
     }
     let detector = Detector::load(onnx, cfg.window)?;
     let own = detector.meta::<f32>("confidence").filter(|_| !calibrate);
+    let cfg = &CountConfig {
+        coarse_min_px: coarse
+            .or_else(|| detector.meta("coarse_min_px"))
+            .unwrap_or(0.0),
+        ..cfg.clone()
+    };
+    cfg.validate()?;
     let ev = evaluate(detector, val, cfg, own)?;
     let mut text = format!(
         "{}: mAP50 {:.3} ({:.3} on the fish at least {:.0} % visible) on {} val frames; at confidence {} ({}) count error {:.2} fish per frame (labelled {:.1})\nclip,frames,labelled_max,estimate,relative_error,map50,map50_well_seen,fish,well_seen\n",
@@ -1211,6 +1221,7 @@ pub fn score_detector(
         let set = [
             ("confidence".to_string(), ev.conf.to_string()),
             ("calibration_frames".to_string(), val.len().to_string()),
+            ("coarse_min_px".to_string(), cfg.coarse_min_px.to_string()),
         ];
         let calibrated = with_metadata(&bytes, onnx, &set).map_err(|e| match e {
             OnnxError::NotOnnx { path, why } => CountError::NotOnnxFile { path, why },

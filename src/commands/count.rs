@@ -61,6 +61,10 @@ pub struct CountOptions {
     /// Median-blur kernel (odd pixels; 1: off)
     #[arg(value_parser = whole::<u32>, long, default_value_t = 3)]
     pub median: u32,
+    /// Also search the view at half size and keep what that finds longer than PX pixels (fish
+    /// close to the camera); 0: off [default: the detector's `coarse_min_px` metadata, else 0]
+    #[arg(long, value_name = "PX")]
+    pub coarse: Option<f32>,
 }
 
 /// `--detector`, else the shipped one.
@@ -95,6 +99,13 @@ pub fn counter(opts: &CountOptions) -> Result<Counter> {
         ..defaults
     }
     .with_detector_defaults(&detector, opts.view_fov, opts.view_size, opts.conf);
+    let config = CountConfig {
+        coarse_min_px: opts
+            .coarse
+            .or_else(|| detector.meta("coarse_min_px"))
+            .unwrap_or(config.coarse_min_px),
+        ..config
+    };
     Ok(Counter::new(config, detector)?)
 }
 
@@ -105,11 +116,19 @@ pub fn run(args: &CountArgs) -> Result<()> {
     let mut counter = counter(&args.opts)?;
     let c = &counter.config;
     println!(
-        "detector {}: confidence {}, view {}° on {} px",
+        "detector {}: confidence {}, view {}° on {} px{}",
         counter.detector.path.display(),
         c.conf,
         c.view_fov_deg,
-        c.view_size
+        c.view_size,
+        if c.coarse_min_px > 0.0 {
+            format!(
+                ", coarse pass for fish of {} px and longer",
+                c.coarse_min_px
+            )
+        } else {
+            String::new()
+        }
     );
     let _lock = match &args.out {
         Some(d) => Some(deepfoids_experiments::lock_dir(d)?),

@@ -48,6 +48,10 @@ pub struct TrainDetectorArgs {
     /// IoU above which the one NMS merges boxes when the val split is scored, as `count`'s
     #[arg(long, default_value_t = 0.5)]
     pub iou: f32,
+    /// With --eval: `count`'s coarse pass (pixels; 0: off) [default: the detector's
+    /// `coarse_min_px`, else off]; --calibrate writes it into the detector
+    #[arg(long, value_name = "PX", requires = "eval")]
+    pub coarse: Option<f32>,
     /// Use at most this many training frames (0: all)
     #[arg(value_parser = whole::<usize>, long, default_value_t = 0)]
     pub max_frames: usize,
@@ -113,7 +117,14 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
     if let Some(onnx) = &args.eval {
         print!(
             "{}",
-            score_detector(onnx, &data.val, &cfg.count, &args.out, args.calibrate)?
+            score_detector(
+                onnx,
+                &data.val,
+                &cfg.count,
+                &args.out,
+                args.calibrate,
+                args.coarse
+            )?
         );
         return Ok(());
     }
