@@ -62,6 +62,9 @@ pub struct TrainConfig {
     pub base: usize,
     /// Output stride of the heatmap, 4 or 8 ([`crate::model::layers`]); 8.
     pub stride: usize,
+    /// One more dilated layer: a receptive field of 263 px instead of 135
+    /// ([`crate::model::layers`]); false.
+    pub wide: bool,
     /// Seed of the crops, flips and weights; 0.
     pub seed: u64,
     /// Pre-processing shared with `count` (fisheye view, median, window).
@@ -118,6 +121,7 @@ impl Default for TrainConfig {
             lr: 2e-3,
             base: 16,
             stride: STRIDE,
+            wide: false,
             seed: 0,
             count: CountConfig::default(),
             max_frames: 0,
@@ -139,6 +143,7 @@ struct Schedule {
     lr: f64,
     base: usize,
     stride: usize,
+    wide: bool,
     seed: u64,
     max_frames: usize,
     faint_as_water: bool,
@@ -154,6 +159,7 @@ impl Schedule {
             lr: cfg.lr,
             base: cfg.base,
             stride: cfg.stride,
+            wide: cfg.wide,
             seed: cfg.seed,
             max_frames: cfg.max_frames,
             faint_as_water: cfg.faint_as_water,
@@ -175,6 +181,7 @@ impl Schedule {
             "lr",
             "base",
             "stride",
+            "wide",
             "seed",
             "max_frames",
             "faint_as_water",
@@ -670,6 +677,7 @@ pub fn train(
     let mut model: DetectorNet = DetectorNetConfig::new()
         .with_base(cfg.base)
         .with_stride(cfg.stride)
+        .with_wide(cfg.wide)
         .init(&dev);
     let mut optim = AdamConfig::new().init();
     let mut rng = Rng(cfg.seed ^ 0xC0FF_EE00);

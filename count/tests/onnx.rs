@@ -167,19 +167,21 @@ fn files_that_are_not_detectors_are_named() {
 /// the running-sum `local_contrast` fed instead).
 #[test]
 fn our_export_matches_burn() {
-    for stride in [8, 4] {
-        export_matches_burn(stride);
+    for (stride, wide) in [(8, false), (4, false), (8, true)] {
+        export_matches_burn(stride, wide);
     }
 }
 
-fn export_matches_burn(stride: usize) {
+fn export_matches_burn(stride: usize, wide: bool) {
     let dev = Device::flex();
     let net = DetectorNetConfig::new()
         .with_base(4)
         .with_stride(stride)
+        .with_wide(wide)
         .init(&dev);
+    assert_eq!(net.body.len(), if wide { 8 } else { 7 });
     assert_eq!(net.stride(), stride);
-    let p = tmp(&format!("ours-{stride}.onnx"));
+    let p = tmp(&format!("ours-{stride}-{wide}.onnx"));
     std::fs::write(&p, export_detector(&net, &[])).unwrap();
     let img = image::RgbImage::from_fn(64, 64, |x, y| {
         image::Rgb([(x * 4) as u8, (y * 4) as u8, ((x * 7 + y * 13) % 256) as u8])

@@ -37,6 +37,9 @@ pub struct TrainDetectorArgs {
     /// Output stride of the heatmap: 8, or 4 for schools whose fish lie closer than 8 px in the view
     #[arg(value_parser = whole::<usize>, long, default_value_t = TrainConfig::default().stride)]
     pub stride: usize,
+    /// One more dilated layer: a receptive field of 263 px instead of 135, for fish close to the camera
+    #[arg(long)]
+    pub wide: bool,
     #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
     /// Field of view of the perspective view fisheye frames are corrected to (degrees), as `count`'s
@@ -90,6 +93,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         lr: args.lr,
         base: args.base,
         stride: args.stride,
+        wide: args.wide,
         seed: args.seed,
         max_frames: args.max_frames,
         faint_as_water: !args.ignore_faint,
