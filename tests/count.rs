@@ -156,10 +156,11 @@ fn detector_trains_and_counts_end_to_end() {
     );
     assert!(det.join("eval/evaluation.json").is_file());
     // --calibrate lets the val frames choose and writes the detector with
-    // that confidence; `count` then takes it as its default.
+    // that confidence and the coarse pass it was scored with; `count` then
+    // takes both as its defaults.
     let cal = det.join("calibrated");
     let calibrated = cli_ok(&format!(
-        "train-detector --data {} --out {} --view-size 256 --eval {} --calibrate",
+        "train-detector --data {} --out {} --view-size 256 --eval {} --calibrate --coarse 64",
         data.display(),
         cal.display(),
         det.join("detector.onnx").display()
@@ -179,11 +180,9 @@ fn detector_trains_and_counts_end_to_end() {
         cal.join("detector.onnx").to_str().unwrap(),
     ));
     assert!(
-        text(&c)
-            .lines()
-            .next()
-            .unwrap_or("")
-            .contains(&format!("confidence {chosen}")),
+        text(&c).lines().next().unwrap_or("").contains(&format!(
+            "confidence {chosen}, view 120° on 256 px, coarse pass for fish of 64 px and longer"
+        )),
         "{}",
         text(&c)
     );
