@@ -116,6 +116,26 @@ impl ConvPack {
         (start, lo, hi.max(lo))
     }
 
+    /// `f(c, row, (y0, oy_lo, oy_hi), (x0, ox_lo, ox_hi))` for every row of
+    /// the patch matrix: input channel `c`, the row's index in `[K, P]`, and
+    /// [`span`](Self::span) of its kernel offset down and across.
+    fn for_each_tap(
+        &self,
+        (h, w): (usize, usize),
+        (ho, wo): (usize, usize),
+        mut f: impl FnMut(usize, usize, (isize, usize, usize), (isize, usize, usize)),
+    ) {
+        let k = self.k;
+        for c in 0..self.c_in {
+            for r in 0..k {
+                let down = self.span(r, h, ho);
+                for q in 0..k {
+                    f(c, (c * k + r) * k + q, down, self.span(q, w, wo));
+                }
+            }
+        }
+    }
+
     /// The patches of one image `x` `[c_in, h, w]` into `cols` `[K, P]`.
     fn im2col(
         &self,
@@ -124,40 +144,37 @@ impl ConvPack {
         (ho, wo): (usize, usize),
         cols: &mut [f32],
     ) {
-        let (k, s) = (self.k, self.stride);
-        let p = ho * wo;
-        for c in 0..self.c_in {
-            let plane = &x[c * h * w..(c + 1) * h * w];
-            for r in 0..k {
-                let (y0, oy_lo, oy_hi) = self.span(r, h, ho);
-                for q in 0..k {
-                    let (x0, ox_lo, ox_hi) = self.span(q, w, wo);
-                    let row = &mut cols[((c * k + r) * k + q) * p..][..p];
-                    for oy in 0..ho {
-                        let out = &mut row[oy * wo..(oy + 1) * wo];
-                        if oy < oy_lo || oy >= oy_hi {
-                            out.fill(0.0);
-                            continue;
-                        }
-                        let iy = (y0 + (oy * s) as isize) as usize;
-                        let src = &plane[iy * w..(iy + 1) * w];
-                        out[..ox_lo].fill(0.0);
-                        out[ox_hi..].fill(0.0);
-                        let ix0 = (x0 + (ox_lo * s) as isize) as usize;
-                        if s == 1 {
-                            out[ox_lo..ox_hi].copy_from_slice(&src[ix0..ix0 + ox_hi - ox_lo]);
-                        } else {
-                            for (o, v) in out[ox_lo..ox_hi]
-                                .iter_mut()
-                                .zip(src[ix0..].iter().step_by(s))
-                            {
-                                *o = *v;
-                            }
+        let (s, p) = (self.stride, ho * wo);
+        self.for_each_tap(
+            (h, w),
+            (ho, wo),
+            |c, k, (y0, oy_lo, oy_hi), (x0, ox_lo, ox_hi)| {
+                let plane = &x[c * h * w..(c + 1) * h * w];
+                let row = &mut cols[k * p..][..p];
+                for oy in 0..ho {
+                    let out = &mut row[oy * wo..(oy + 1) * wo];
+                    if oy < oy_lo || oy >= oy_hi {
+                        out.fill(0.0);
+                        continue;
+                    }
+                    let iy = (y0 + (oy * s) as isize) as usize;
+                    let src = &plane[iy * w..(iy + 1) * w];
+                    out[..ox_lo].fill(0.0);
+                    out[ox_hi..].fill(0.0);
+                    let ix0 = (x0 + (ox_lo * s) as isize) as usize;
+                    if s == 1 {
+                        out[ox_lo..ox_hi].copy_from_slice(&src[ix0..ix0 + ox_hi - ox_lo]);
+                    } else {
+                        for (o, v) in out[ox_lo..ox_hi]
+                            .iter_mut()
+                            .zip(src[ix0..].iter().step_by(s))
+                        {
+                            *o = *v;
                         }
                     }
                 }
-            }
-        }
+            },
+        );
     }
 
     /// Adds the patch gradients `cols` `[K, P]` back onto the image gradient
@@ -169,33 +186,30 @@ impl ConvPack {
         (ho, wo): (usize, usize),
         dx: &mut [f32],
     ) {
-        let (k, s) = (self.k, self.stride);
-        let p = ho * wo;
-        for c in 0..self.c_in {
-            let plane = &mut dx[c * h * w..(c + 1) * h * w];
-            for r in 0..k {
-                let (y0, oy_lo, oy_hi) = self.span(r, h, ho);
-                for q in 0..k {
-                    let (x0, ox_lo, ox_hi) = self.span(q, w, wo);
-                    let row = &cols[((c * k + r) * k + q) * p..][..p];
-                    for oy in oy_lo..oy_hi {
-                        let iy = (y0 + (oy * s) as isize) as usize;
-                        let dst = &mut plane[iy * w..(iy + 1) * w];
-                        let ix0 = (x0 + (ox_lo * s) as isize) as usize;
-                        let src = &row[oy * wo + ox_lo..oy * wo + ox_hi];
-                        if s == 1 {
-                            for (d, v) in dst[ix0..ix0 + src.len()].iter_mut().zip(src) {
-                                *d += v;
-                            }
-                        } else {
-                            for (d, v) in dst[ix0..].iter_mut().step_by(s).zip(src) {
-                                *d += v;
-                            }
+        let (s, p) = (self.stride, ho * wo);
+        self.for_each_tap(
+            (h, w),
+            (ho, wo),
+            |c, k, (y0, oy_lo, oy_hi), (x0, ox_lo, ox_hi)| {
+                let plane = &mut dx[c * h * w..(c + 1) * h * w];
+                let row = &cols[k * p..][..p];
+                for oy in oy_lo..oy_hi {
+                    let iy = (y0 + (oy * s) as isize) as usize;
+                    let dst = &mut plane[iy * w..(iy + 1) * w];
+                    let ix0 = (x0 + (ox_lo * s) as isize) as usize;
+                    let src = &row[oy * wo + ox_lo..oy * wo + ox_hi];
+                    if s == 1 {
+                        for (d, v) in dst[ix0..ix0 + src.len()].iter_mut().zip(src) {
+                            *d += v;
+                        }
+                    } else {
+                        for (d, v) in dst[ix0..].iter_mut().step_by(s).zip(src) {
+                            *d += v;
                         }
                     }
                 }
-            }
-        }
+            },
+        );
     }
 
     /// `f` on the patch matrix `[K, P]` of one image `img` `[c_in, h, w]`:
