@@ -85,6 +85,18 @@ impl CountConfig {
         }
     }
 
+    /// This configuration with the coarse pass the user chose (`--coarse`),
+    /// else the detector's own (`coarse_min_px` in its metadata, written by
+    /// `train-detector --calibrate`), else the one already here.
+    pub fn with_coarse_default(self, detector: &Detector, coarse: Option<f32>) -> Self {
+        Self {
+            coarse_min_px: coarse
+                .or_else(|| detector.meta("coarse_min_px"))
+                .unwrap_or(self.coarse_min_px),
+            ..self
+        }
+    }
+
     /// Check every value; the error names it and what is allowed.
     pub fn validate(&self) -> Result<()> {
         let bad = |what, allowed, value: String| {

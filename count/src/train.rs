@@ -1184,12 +1184,7 @@ pub fn score_detector(
     }
     let detector = Detector::load(onnx, cfg.window)?;
     let own = detector.meta::<f32>("confidence").filter(|_| !calibrate);
-    let cfg = &CountConfig {
-        coarse_min_px: coarse
-            .or_else(|| detector.meta("coarse_min_px"))
-            .unwrap_or(0.0),
-        ..cfg.clone()
-    };
+    let cfg = &cfg.clone().with_coarse_default(&detector, coarse);
     cfg.validate()?;
     let ev = evaluate(detector, val, cfg, own)?;
     let mut text = format!(

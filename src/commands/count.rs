@@ -98,14 +98,8 @@ pub fn counter(opts: &CountOptions) -> Result<Counter> {
         iou: opts.iou,
         ..defaults
     }
-    .with_detector_defaults(&detector, opts.view_fov, opts.view_size, opts.conf);
-    let config = CountConfig {
-        coarse_min_px: opts
-            .coarse
-            .or_else(|| detector.meta("coarse_min_px"))
-            .unwrap_or(config.coarse_min_px),
-        ..config
-    };
+    .with_detector_defaults(&detector, opts.view_fov, opts.view_size, opts.conf)
+    .with_coarse_default(&detector, opts.coarse);
     Ok(Counter::new(config, detector)?)
 }
 
