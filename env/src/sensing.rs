@@ -150,6 +150,21 @@ impl<const K: usize> Nearest<K> {
 
 pub use crate::limits::MAX_NEIGHBOUR_CAP;
 
+/// Whether a neighbour at squared distance `d2`, `along` ahead on the fish's
+/// heading, is inside SPEC §6.2's personal space of `radius` (m): the sphere,
+/// or with `ahead > 0` the ellipsoid stretched to `ahead` along the lane in
+/// front (`Extensions::personal_space_ahead_bl`).
+#[inline]
+fn personal_space_holds(d2: f32, along: f32, radius: f32, ahead: f32) -> bool {
+    let r2 = radius * radius;
+    if ahead > 0.0 && along > 0.0 {
+        let off2 = (d2 - along * along).max(0.0);
+        along * along * r2 + off2 * ahead * ahead < r2 * ahead * ahead
+    } else {
+        d2 < r2
+    }
+}
+
 impl Sensing<'_> {
     /// Fill `frame` with what fish `i` sees and sum up its surroundings.
     pub fn sense(&self, i: usize, frame: &mut Frame) -> Surroundings {
@@ -188,7 +203,7 @@ impl Sensing<'_> {
         let cap = self.neighbour_cap;
         let ext = &self.extensions;
         let personal_bl = ext.personal_space_bl;
-        let personal2 = (personal_bl * w.bl[i]).powi(2);
+        let ahead_bl = ext.personal_space_ahead_bl;
         let mut counted = 0u32;
         let mut nearest = Nearest::<MAX_NEIGHBOUR_CAP>::new();
         let (species, bl) = (w.species[i], w.bl[i]);
@@ -200,10 +215,12 @@ impl Sensing<'_> {
             }
             let n = &self.neighbours[slot];
             let d = d2.sqrt();
-            let inside = match ext.personal_space_of {
-                PersonalSpaceOf::Own => d2 < personal2,
-                PersonalSpaceOf::Pair => d2 < (0.5 * personal_bl * (bl + n.bl)).powi(2),
+            let len = match ext.personal_space_of {
+                PersonalSpaceOf::Own => bl,
+                PersonalSpaceOf::Pair => 0.5 * (bl + n.bl),
             };
+            let along = rel.dot(f);
+            let inside = personal_space_holds(d2, along, personal_bl * len, ahead_bl * len);
             if inside {
                 seen.crowding += 1;
             } else if !ext.conspecific_only || n.species == species {
@@ -218,7 +235,7 @@ impl Sensing<'_> {
                     nearest.offer(cap, d, align);
                 }
             }
-            if rel.dot(f) > 0.0 && d < front_d {
+            if along > 0.0 && d < front_d {
                 front_d = d;
                 seen.nearest_front = Some(j as u32);
             }

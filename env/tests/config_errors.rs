@@ -268,3 +268,20 @@ fn every_shipped_reward_profile_loads_and_is_documented() {
         );
     }
 }
+
+/// A lane-ahead personal space needs the personal space it stretches: alone it
+/// is refused naming the file, the field and the one it needs.
+#[test]
+fn a_lane_ahead_without_a_personal_space_is_refused() {
+    let root = configs_with("ahead", "rewards/thesis/pretrain.toml", |t| {
+        format!("{t}\n[extensions]\npersonal_space_ahead_bl = 1.0\n")
+    });
+    assert_mentions(
+        &load_err(&root, "seabream_default"),
+        &[
+            "pretrain.toml",
+            "extensions.personal_space_ahead_bl",
+            "extensions.personal_space_bl > 0",
+        ],
+    );
+}

@@ -217,6 +217,39 @@ fn personal_space() {
     assert!(close(terms(&env, 0)[ND], 0.5, 2e-3), "{:?}", terms(&env, 0));
 }
 
+/// A lane-ahead personal space (0.66 BL = 0.2244 m, stretched to 1 BL =
+/// 0.34 m ahead; seabream) with a penalty of 1 and no kicks. Fish 0 heads +z
+/// with fish 1 0.3 m straight ahead (in its lane: (0.3/0.34)² = 0.78 < 1),
+/// fish 2 0.3 m ahead and 0.15 m aside (0.78 + (0.15/0.2244)² = 1.22: out) and
+/// fish 3 0.3 m behind (the sphere: out). The sphere alone sees none of them:
+/// r_ND = 1.5 · 3 = 4.5. The lane: fish 0 is crowded by fish 1, 1.5 · 2 − 1 =
+/// 2; fish 3 by fish 0 (fish 1 and 2 are 0.6 m ahead: out), also 2.
+#[test]
+fn personal_space_in_the_lane_ahead() {
+    for (ahead, want) in [(0.0, [4.5, 4.5]), (1.0, [2.0, 2.0])] {
+        let mut s = scene("seabream_default", 4);
+        let x = &mut s.rewards.extensions;
+        x.personal_space_bl = 0.66;
+        x.personal_space_ahead_bl = ahead;
+        x.personal_space_penalty = 1.0;
+        s.rewards.contacts.kick = 0.0;
+        s.rewards.contacts.push = 0.0;
+        let mut env = calm_env(s);
+        let c = Vec3::new(-0.5, -1.5, -0.3);
+        place(&mut env, 0, c, Vec3::Z, 0.5);
+        place(&mut env, 1, c + Vec3::new(0.0, 0.0, 0.3), Vec3::Z, 0.5);
+        place(&mut env, 2, c + Vec3::new(0.15, 0.0, 0.3), Vec3::Z, 0.5);
+        place(&mut env, 3, c + Vec3::new(0.0, 0.0, -0.3), Vec3::Z, 0.5);
+        env.observe_now();
+        env.step(&zeros(&env)).unwrap();
+        let got = [terms(&env, 0)[ND], terms(&env, 3)[ND]];
+        assert!(
+            close(got[0], want[0], 3e-3) && close(got[1], want[1], 3e-3),
+            "ahead {ahead}: {got:?}, want {want:?}"
+        );
+    }
+}
+
 /// r_ND of a parallel pair `dx` m apart in mid-water, fish 0 of 0.34 m and
 /// fish 1 of 0.17 m, after one decision in scene `s`.
 fn unequal_pair_nd(s: deepfoids_env::Scene, dx: f32) -> [f32; 2] {

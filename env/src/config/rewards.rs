@@ -151,6 +151,15 @@ pub struct Extensions {
     /// Whose body length `personal_space_bl` counts in: `own` (default) or the
     /// `pair`'s mean.
     pub personal_space_of: PersonalSpaceOf,
+    /// The personal space stretched along the lane ahead, in BL: a neighbour
+    /// in front of the fish (its offset along the heading `a > 0`, off it `l`)
+    /// is inside when `(a / ahead)² + (l / personal_space_bl)² < 1`; behind or
+    /// beside, the sphere of `personal_space_bl` as before. A contact is an
+    /// overlap of 1 BL long colliders, so a follower in a neighbour's lane
+    /// touches it at any distance under 1 BL, where the sphere of 0.66 BL does
+    /// not see it (NOTES, session 47). Not in the sources: a profile switch.
+    /// 0 (default): off, the sphere.
+    pub personal_space_ahead_bl: f32,
     /// Penalty per neighbour inside the personal space, per decision, added to
     /// `r_ND` (> 0 means a cost). 0 (default): none.
     pub personal_space_penalty: f32,
@@ -179,6 +188,7 @@ impl Default for Extensions {
             neighbour_form: NeighbourForm::Sum,
             personal_space_bl: 0.0,
             personal_space_of: PersonalSpaceOf::Own,
+            personal_space_ahead_bl: 0.0,
             personal_space_penalty: 0.0,
             neighbour_budget: 0,
             conspecific_only: false,
@@ -280,12 +290,32 @@ impl RewardWeights {
         )?;
         check(path, "contacts.kick", r.contacts.kick, SPEED, "m/s")?;
         check(path, "contacts.push", r.contacts.push, SPEED, "m/s")?;
+        let x = &r.extensions;
         check(
             path,
             "extensions.personal_space_bl",
-            r.extensions.personal_space_bl,
+            x.personal_space_bl,
             BL,
             "BL",
-        )
+        )?;
+        check(
+            path,
+            "extensions.personal_space_ahead_bl",
+            x.personal_space_ahead_bl,
+            BL,
+            "BL",
+        )?;
+        if x.personal_space_ahead_bl > 0.0 && x.personal_space_bl <= 0.0 {
+            return Err(ConfigError::Invalid {
+                path: path.to_path_buf(),
+                field: "extensions.personal_space_ahead_bl".into(),
+                message: format!(
+                    "{} stretches a personal space that is off: set \
+                     extensions.personal_space_bl > 0 too, or this to 0",
+                    x.personal_space_ahead_bl
+                ),
+            });
+        }
+        Ok(())
     }
 }
