@@ -27,3 +27,12 @@ evaluate() {
             --out "$dir" >/dev/null
     done
 }
+
+# transfer PROFILE SCENE RUN PRE: the TRANSFER-step transfer of run PRE into
+# SCENE under PROFILE's transfer weights, then its evaluation.
+transfer() {
+    local profile=$1 scene=$2 run=$3 pre=$4
+    echo "== $profile: transfer into $scene ($(date +%T))"
+    train "$profile" "$scene" transfer "$TRANSFER" "$run" "$pre"
+    evaluate "$profile" "$scene" transfer "$run"
+}

@@ -29,10 +29,7 @@ for p in "$@"; do
     for scene in $SCENES; do
         stage=${scene#density_}
         [[ $scene == coho_default ]] && stage=default
-        run=$p-$stage
-        echo "== $p: transfer into $scene ($(date +%T))"
-        train "$p" "$scene" transfer "$TRANSFER" "$run" "$pre"
-        evaluate "$p" "$scene" transfer "$run"
+        transfer "$p" "$scene" "$p-$stage" "$pre"
     done
 done
 echo "== done ($(date +%T))"

@@ -23,10 +23,7 @@ for p in "$@"; do
     train "$p" coho_default pretrain "$PRE" "$pre"
     evaluate "$p" coho_default pretrain "$pre"
     for scene in density_sparse density_dense; do
-        run=$p$TAG-${scene#density_}
-        echo "== $p: transfer into $scene ($(date +%T))"
-        train "$p" "$scene" transfer "$TRANSFER" "$run" "$pre"
-        evaluate "$p" "$scene" transfer "$run"
+        transfer "$p" "$scene" "$p$TAG-${scene#density_}" "$pre"
     done
 done
 echo "== done ($(date +%T))"
