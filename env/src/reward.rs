@@ -100,9 +100,10 @@ pub fn boundary_distance(w: &RewardWeights, closeness: f32) -> f32 {
 
 /// `r_ND = w_ND · Σ_j (90 − Δθ_j)/90` over neighbours within `d_sense`
 /// (`alignment` is the sum; `Δθ_j` in degrees), less SPEC §6.2's personal-space
-/// penalty per neighbour inside it (`crowding`).
-pub fn neighbour_distance(w: &RewardWeights, alignment: f32, crowding: u32) -> f32 {
-    w.w_nd * alignment - w.extensions.personal_space_penalty * crowding as f32
+/// penalty per neighbour inside it (`crowding`: their number, or with
+/// `personal_space_misalignment` their weighted sum).
+pub fn neighbour_distance(w: &RewardWeights, alignment: f32, crowding: f32) -> f32 {
+    w.w_nd * alignment - w.extensions.personal_space_penalty * crowding
 }
 
 /// `r_E = −w_r · Δθ − w_s · |Δv_a|`: `Δθ` the body's rotation over the
@@ -259,7 +260,7 @@ mod tests {
             boundary_collision: boundary_collision(&w, false),
             neighbour_collision: neighbour_collision(&w, 3),
             boundary_distance: boundary_distance(&w, 0.25),
-            neighbour_distance: neighbour_distance(&w, 1.5, 0),
+            neighbour_distance: neighbour_distance(&w, 1.5, 0.0),
             energy: energy(&w, 10.0, -0.2),
             movement: movement(&w, 5.0, 0.5, 53.0, 0.3),
             chase: 0.0,

@@ -34,8 +34,10 @@ pub(crate) struct Surroundings {
     /// extensions: outside the personal space, conspecific, size-weighted, or
     /// the mean instead of the sum, as the profile says).
     pub alignment_sum: f32,
-    /// Neighbours inside the personal space (SPEC §6.2; 0 when it is off).
-    pub crowding: u32,
+    /// Neighbours inside the personal space (SPEC §6.2; 0 when it is off),
+    /// each weighted by `1 + m · (1 − alignment)` with the profile's
+    /// `personal_space_misalignment` m (1 when it is off).
+    pub crowding: f32,
     pub nearest_front: Option<u32>,
     pub nearest_subordinate: Option<u32>,
 }
@@ -204,6 +206,7 @@ impl Sensing<'_> {
         let ext = &self.extensions;
         let personal_bl = ext.personal_space_bl;
         let ahead_bl = ext.personal_space_ahead_bl;
+        let misalignment = ext.personal_space_misalignment;
         let mut counted = 0u32;
         let mut nearest = Nearest::<MAX_NEIGHBOUR_CAP>::new();
         let (species, bl) = (w.species[i], w.bl[i]);
@@ -222,7 +225,12 @@ impl Sensing<'_> {
             let along = rel.dot(f);
             let inside = personal_space_holds(d2, along, personal_bl * len, ahead_bl * len);
             if inside {
-                seen.crowding += 1;
+                seen.crowding += if misalignment > 0.0 {
+                    let align = (90.0 - fast_acos_deg(f.dot(n.heading))) / 90.0;
+                    1.0 + misalignment * (1.0 - align)
+                } else {
+                    1.0
+                };
             } else if !ext.conspecific_only || n.species == species {
                 let mut align = (90.0 - fast_acos_deg(f.dot(n.heading))) / 90.0;
                 if ext.size_weighted {

@@ -250,6 +250,34 @@ fn personal_space_in_the_lane_ahead() {
     }
 }
 
+/// Misalignment inside the personal space (0.66 BL = 0.2244 m, penalty 1,
+/// no kicks; seabream): fish 0 heads +z with fish 1 0.15 m above it heading
+/// +x (90° off: alignment 0) and fish 2 0.15 m below, parallel (alignment 1);
+/// both stay inside over the decision and neither box touches fish 0's
+/// (0.15 m > 0.085 m of two half heights). Off: r_ND = −(1 + 1) = −2; with
+/// m = 1: −((1 + 1 · 1) + 1) = −3; with m = 2: −((1 + 2) + 1) = −4.
+#[test]
+fn personal_space_prices_misalignment() {
+    for (m, want) in [(0.0, -2.0), (1.0, -3.0), (2.0, -4.0)] {
+        let mut s = scene("seabream_default", 3);
+        let x = &mut s.rewards.extensions;
+        x.personal_space_bl = 0.66;
+        x.personal_space_penalty = 1.0;
+        x.personal_space_misalignment = m;
+        s.rewards.contacts.kick = 0.0;
+        s.rewards.contacts.push = 0.0;
+        let mut env = calm_env(s);
+        let c = Vec3::new(-0.5, -1.5, -0.3);
+        place(&mut env, 0, c, Vec3::Z, 0.5);
+        place(&mut env, 1, c + Vec3::new(0.0, 0.15, 0.0), Vec3::X, 0.5);
+        place(&mut env, 2, c + Vec3::new(0.0, -0.15, 0.0), Vec3::Z, 0.5);
+        env.observe_now();
+        env.step(&zeros(&env)).unwrap();
+        let got = terms(&env, 0)[ND];
+        assert!(close(got, want, 3e-3), "m {m}: {got}, want {want}");
+    }
+}
+
 /// r_ND of a parallel pair `dx` m apart in mid-water, fish 0 of 0.34 m and
 /// fish 1 of 0.17 m, after one decision in scene `s`.
 fn unequal_pair_nd(s: deepfoids_env::Scene, dx: f32) -> [f32; 2] {

@@ -160,6 +160,13 @@ pub struct Extensions {
     /// not see it (NOTES, session 47). Not in the sources: a profile switch.
     /// 0 (default): off, the sphere.
     pub personal_space_ahead_bl: f32,
+    /// Misalignment inside the personal space: a neighbour inside costs
+    /// `personal_space_penalty · (1 + m · (1 − (90 − Δθ)/90))`, so a parallel
+    /// one the penalty, one crossing at 90° `1 + m` times it, a head-on one
+    /// `1 + 2m` times (r_ND's alignment term, which does not count a
+    /// neighbour inside; most contacts are paths crossing at ≈ 45°, NOTES,
+    /// session 49). Not in the sources: a profile switch. 0 (default): off.
+    pub personal_space_misalignment: f32,
     /// Penalty per neighbour inside the personal space, per decision, added to
     /// `r_ND` (> 0 means a cost). 0 (default): none.
     pub personal_space_penalty: f32,
@@ -189,6 +196,7 @@ impl Default for Extensions {
             personal_space_bl: 0.0,
             personal_space_of: PersonalSpaceOf::Own,
             personal_space_ahead_bl: 0.0,
+            personal_space_misalignment: 0.0,
             personal_space_penalty: 0.0,
             neighbour_budget: 0,
             conspecific_only: false,
@@ -261,6 +269,10 @@ impl RewardWeights {
             (
                 "extensions.personal_space_penalty",
                 r.extensions.personal_space_penalty,
+            ),
+            (
+                "extensions.personal_space_misalignment",
+                r.extensions.personal_space_misalignment,
             ),
         ];
         for (field, v) in fields {
