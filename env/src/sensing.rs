@@ -152,6 +152,13 @@ impl<const K: usize> Nearest<K> {
 
 pub use crate::limits::MAX_NEIGHBOUR_CAP;
 
+/// r_ND's term of one neighbour, `(90 − Δθ)/90` (Eq. 4.5's r_ND; `Δθ` in
+/// degrees between the unit headings `f` and `h`).
+#[inline]
+fn alignment(f: Vec3, h: Vec3) -> f32 {
+    (90.0 - fast_acos_deg(f.dot(h))) / 90.0
+}
+
 /// Whether a neighbour at squared distance `d2`, `along` ahead on the fish's
 /// heading, is inside SPEC §6.2's personal space of `radius` (m): the sphere,
 /// or with `ahead > 0` the ellipsoid stretched to `ahead` along the lane in
@@ -226,13 +233,12 @@ impl Sensing<'_> {
             let inside = personal_space_holds(d2, along, personal_bl * len, ahead_bl * len);
             if inside {
                 seen.crowding += if misalignment > 0.0 {
-                    let align = (90.0 - fast_acos_deg(f.dot(n.heading))) / 90.0;
-                    1.0 + misalignment * (1.0 - align)
+                    1.0 + misalignment * (1.0 - alignment(f, n.heading))
                 } else {
                     1.0
                 };
             } else if !ext.conspecific_only || n.species == species {
-                let mut align = (90.0 - fast_acos_deg(f.dot(n.heading))) / 90.0;
+                let mut align = alignment(f, n.heading);
                 if ext.size_weighted {
                     align *= bl.min(n.bl) / bl.max(n.bl);
                 }

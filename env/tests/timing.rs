@@ -227,21 +227,15 @@ fn personal_space() {
 #[test]
 fn personal_space_in_the_lane_ahead() {
     for (ahead, want) in [(0.0, [4.5, 4.5]), (1.0, [2.0, 2.0])] {
-        let mut s = scene("seabream_default", 4);
-        let x = &mut s.rewards.extensions;
-        x.personal_space_bl = 0.66;
-        x.personal_space_ahead_bl = ahead;
-        x.personal_space_penalty = 1.0;
-        s.rewards.contacts.kick = 0.0;
-        s.rewards.contacts.push = 0.0;
-        let mut env = calm_env(s);
-        let c = Vec3::new(-0.5, -1.5, -0.3);
-        place(&mut env, 0, c, Vec3::Z, 0.5);
-        place(&mut env, 1, c + Vec3::new(0.0, 0.0, 0.3), Vec3::Z, 0.5);
-        place(&mut env, 2, c + Vec3::new(0.15, 0.0, 0.3), Vec3::Z, 0.5);
-        place(&mut env, 3, c + Vec3::new(0.0, 0.0, -0.3), Vec3::Z, 0.5);
-        env.observe_now();
-        env.step(&zeros(&env)).unwrap();
+        let env = one_decision_in_a_personal_space(
+            |x| x.personal_space_ahead_bl = ahead,
+            &[
+                (Vec3::ZERO, Vec3::Z),
+                (Vec3::new(0.0, 0.0, 0.3), Vec3::Z),
+                (Vec3::new(0.15, 0.0, 0.3), Vec3::Z),
+                (Vec3::new(0.0, 0.0, -0.3), Vec3::Z),
+            ],
+        );
         let got = [terms(&env, 0)[ND], terms(&env, 3)[ND]];
         assert!(
             close(got[0], want[0], 3e-3) && close(got[1], want[1], 3e-3),
@@ -259,23 +253,41 @@ fn personal_space_in_the_lane_ahead() {
 #[test]
 fn personal_space_prices_misalignment() {
     for (m, want) in [(0.0, -2.0), (1.0, -3.0), (2.0, -4.0)] {
-        let mut s = scene("seabream_default", 3);
-        let x = &mut s.rewards.extensions;
-        x.personal_space_bl = 0.66;
-        x.personal_space_penalty = 1.0;
-        x.personal_space_misalignment = m;
-        s.rewards.contacts.kick = 0.0;
-        s.rewards.contacts.push = 0.0;
-        let mut env = calm_env(s);
-        let c = Vec3::new(-0.5, -1.5, -0.3);
-        place(&mut env, 0, c, Vec3::Z, 0.5);
-        place(&mut env, 1, c + Vec3::new(0.0, 0.15, 0.0), Vec3::X, 0.5);
-        place(&mut env, 2, c + Vec3::new(0.0, -0.15, 0.0), Vec3::Z, 0.5);
-        env.observe_now();
-        env.step(&zeros(&env)).unwrap();
+        let env = one_decision_in_a_personal_space(
+            |x| x.personal_space_misalignment = m,
+            &[
+                (Vec3::ZERO, Vec3::Z),
+                (Vec3::new(0.0, 0.15, 0.0), Vec3::X),
+                (Vec3::new(0.0, -0.15, 0.0), Vec3::Z),
+            ],
+        );
         let got = terms(&env, 0)[ND];
         assert!(close(got, want, 3e-3), "m {m}: {got}, want {want}");
     }
+}
+
+/// One decision of seabream in mid-water (`fish`: offset from a point and
+/// heading, at 0.5 m/s) with a personal space of 0.66 BL costing 1 per
+/// neighbour, no contact kicks, and `edit` applied to the extensions.
+fn one_decision_in_a_personal_space(
+    edit: impl FnOnce(&mut deepfoids_env::config::Extensions),
+    fish: &[(Vec3, Vec3)],
+) -> deepfoids_env::Env {
+    let mut s = scene("seabream_default", fish.len());
+    let x = &mut s.rewards.extensions;
+    x.personal_space_bl = 0.66;
+    x.personal_space_penalty = 1.0;
+    edit(x);
+    s.rewards.contacts.kick = 0.0;
+    s.rewards.contacts.push = 0.0;
+    let mut env = calm_env(s);
+    let c = Vec3::new(-0.5, -1.5, -0.3);
+    for (i, &(offset, heading)) in fish.iter().enumerate() {
+        place(&mut env, i, c + offset, heading, 0.5);
+    }
+    env.observe_now();
+    env.step(&zeros(&env)).unwrap();
+    env
 }
 
 /// r_ND of a parallel pair `dx` m apart in mid-water, fish 0 of 0.34 m and
