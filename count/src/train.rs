@@ -15,6 +15,10 @@
 //! - **Random crops** (256 px by default) with horizontal flips: the network
 //!   is fully convolutional, so crops train it for 416-px windows at a
 //!   quarter of the cost.
+//! - **Half-size crops** (`half_share`, off by default): a share of the
+//!   crops is cut from the view shrunk to half, as `count`'s coarse pass
+//!   searches it, so fish close to the lens (longer than the receptive
+//!   field) are also seen at the size the coarse pass shows them.
 //! - **CenterNet's losses**: penalty-reduced focal loss on a heatmap of
 //!   Gaussians (α = 2, β = 4; σ = max(0.5, 0.15·min(w, h)/8) cells) and L1 on
 //!   offsets and log sizes at the centre cells, both over the number of fish.
@@ -67,6 +71,9 @@ pub struct TrainConfig {
     pub wide: bool,
     /// Seed of the crops, flips and weights; 0.
     pub seed: u64,
+    /// Share of the crops cut from the training views shrunk to half their
+    /// size, as `count --coarse` searches a view ([`half_size`]); 0.
+    pub half_share: f32,
     /// Pre-processing shared with `count` (fisheye view, median, window).
     #[serde(skip)]
     pub count: CountConfig,
@@ -100,6 +107,13 @@ impl TrainConfig {
                 value: self.stride.to_string(),
             });
         }
+        if !(0.0..=1.0).contains(&self.half_share) {
+            return Err(CountError::Value {
+                what: "--half-share",
+                allowed: "a share from 0 to 1",
+                value: self.half_share.to_string(),
+            });
+        }
         if !self.crop.is_multiple_of(8) || self.crop < 32 {
             return Err(CountError::Value {
                 what: "--crop",
@@ -123,6 +137,7 @@ impl Default for TrainConfig {
             stride: STRIDE,
             wide: false,
             seed: 0,
+            half_share: 0.0,
             count: CountConfig::default(),
             max_frames: 0,
             faint_as_water: true,
@@ -145,6 +160,9 @@ struct Schedule {
     stride: usize,
     wide: bool,
     seed: u64,
+    /// Absent from checkpoints written before it existed (their runs had none).
+    #[serde(default)]
+    half_share: f32,
     max_frames: usize,
     faint_as_water: bool,
     train_frames: usize,
@@ -161,6 +179,7 @@ impl Schedule {
             stride: cfg.stride,
             wide: cfg.wide,
             seed: cfg.seed,
+            half_share: cfg.half_share,
             max_frames: cfg.max_frames,
             faint_as_water: cfg.faint_as_water,
             train_frames: data.train.len(),
@@ -183,6 +202,7 @@ impl Schedule {
             "stride",
             "wide",
             "seed",
+            "half_share",
             "max_frames",
             "faint_as_water",
             "train_frames",
@@ -442,6 +462,72 @@ impl Rng {
     }
     fn below(&mut self, n: u64) -> u64 {
         if n == 0 { 0 } else { self.next() % n }
+    }
+    /// Uniform in `[0, 1)`.
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// A training sample as `count`'s coarse pass sees it: the view shrunk to
+/// half (`⌊w/2⌋ × ⌊h/2⌋`, the same triangle filter), every box scaled with
+/// it, and the labelled fish that end up under 2 px moved to the ignored
+/// (as [`load_data`] treats them at full size).
+pub fn half_size(s: &Sample) -> Sample {
+    let (w, h) = s.image.dimensions();
+    let image = image::imageops::resize(
+        &s.image,
+        (w / 2).max(1),
+        (h / 2).max(1),
+        image::imageops::FilterType::Triangle,
+    );
+    let (kx, ky) = (
+        image.width() as f32 / w as f32,
+        image.height() as f32 / h as f32,
+    );
+    let scale = |b: &Detection| Detection {
+        x0: b.x0 * kx,
+        y0: b.y0 * ky,
+        x1: b.x1 * kx,
+        y1: b.y1 * ky,
+        score: b.score,
+    };
+    let mut ignore: Vec<Detection> = s.ignore.iter().map(scale).collect();
+    let (mut boxes, mut visibility) = (vec![], vec![]);
+    for (b, &v) in s.boxes.iter().zip(&s.visibility) {
+        let b = scale(b);
+        if b.x1 - b.x0 >= 2.0 && b.y1 - b.y0 >= 2.0 {
+            boxes.push(b);
+            visibility.push(v);
+        } else {
+            ignore.push(b);
+        }
+    }
+    Sample {
+        image,
+        boxes,
+        visibility,
+        ignore,
+        faint: s.faint.iter().map(scale).collect(),
+        clip: s.clip.clone(),
+    }
+}
+
+/// The sample a crop is cut from: a training frame drawn at random, at half
+/// size (from `half`, [`half_size`] of every frame) with probability
+/// `half_share`. No extra draw when there are no half-size frames, so a run
+/// without them crops as before they existed.
+fn pick_sample<'a>(
+    train: &'a [Sample],
+    half: &'a [Sample],
+    half_share: f32,
+    rng: &mut Rng,
+) -> &'a Sample {
+    let i = rng.below(train.len() as u64) as usize;
+    if !half.is_empty() && rng.unit() < half_share {
+        &half[i]
+    } else {
+        &train[i]
     }
 }
 
@@ -711,6 +797,11 @@ pub fn train(
             };
             save_checkpoint(out, model, optim, &state)
         };
+    let half: Vec<Sample> = if cfg.half_share > 0.0 {
+        data.train.iter().map(half_size).collect()
+    } else {
+        vec![]
+    };
     let mut steps = step0;
     for step in step0..cfg.steps {
         let out_of_time = cfg.minutes > 0.0 && start.elapsed().as_secs_f64() > cfg.minutes * 60.0;
@@ -723,7 +814,7 @@ pub fn train(
             ));
             break;
         }
-        let [x, ht, bt, mk, wt] = sample_batch(data, cfg, &mut rng, &dev);
+        let [x, ht, bt, mk, wt] = sample_batch(&data.train, &half, cfg, &mut rng, &dev);
         let (heat, boxes) = model.forward_normalised(x);
         let (total, focal, l1) = loss(heat, boxes, ht, bt, mk, wt);
         let value = total.clone().into_scalar::<f32>() as f64;
@@ -892,16 +983,23 @@ fn load_checkpoint(
     Ok((model, optim, state))
 }
 
-/// One minibatch of `cfg.batch` random crops of the training frames: the
+/// One minibatch of `cfg.batch` random crops of the training frames (of
+/// their half-size copies `half` for a share of them, [`pick_sample`]): the
 /// images `[b, 3, crop, crop]` and their targets at the stride's grid
 /// (heat `[b, 1, g, g]`, box regression and its mask `[b, 4, g, g]`, weight
 /// `[b, 1, g, g]`), as [`targets`] makes them.
-fn sample_batch(data: &Data, cfg: &TrainConfig, rng: &mut Rng, dev: &Device) -> [Tensor<4>; 5] {
+fn sample_batch(
+    train: &[Sample],
+    half: &[Sample],
+    cfg: &TrainConfig,
+    rng: &mut Rng,
+    dev: &Device,
+) -> [Tensor<4>; 5] {
     let (c, b) = (cfg.crop as usize, cfg.batch.max(1));
     let g = c / cfg.stride;
     let (mut x, mut ht, mut bt, mut mk, mut wt) = (vec![], vec![], vec![], vec![], vec![]);
     for _ in 0..b {
-        let s = &data.train[rng.below(data.train.len() as u64) as usize];
+        let s = pick_sample(train, half, cfg.half_share, rng);
         let (planes, boxes, ignore) = random_crop(s, cfg.crop, cfg.faint_as_water, rng);
         x.extend(planes);
         let t = targets(&boxes, &ignore, cfg.crop, cfg.stride);
@@ -1330,6 +1428,73 @@ mod tests {
         // 0.95 FP (P 0), 0.9 TP (P 1/2, R 1): AP 1/2.
         let (_, seen, _, _) = ap_pair(&samples, &[vec![at(200.0, 0.95), at(1.0, 0.9)]], &[0]);
         assert!((seen - 0.5).abs() < 1e-9, "{seen}");
+    }
+
+    /// A 20 × 10 frame shrinks to 10 × 5: a labelled 8 × 4 box at (2, 2)
+    /// becomes 4 × 2 at (1, 1); a labelled 3-px one becomes 1.5 px and joins
+    /// the ignored (with its visibility gone); the faint and ignored boxes halve.
+    #[test]
+    fn half_size_by_hand() {
+        let b = |x0: f32, y0: f32, x1: f32, y1: f32| Detection {
+            x0,
+            y0,
+            x1,
+            y1,
+            score: 1.0,
+        };
+        let s = Sample {
+            image: RgbImage::from_pixel(20, 10, image::Rgb([40, 80, 120])),
+            boxes: vec![b(2.0, 2.0, 10.0, 6.0), b(0.0, 0.0, 3.0, 3.0)],
+            visibility: vec![0.8, 0.5],
+            ignore: vec![b(12.0, 0.0, 13.0, 1.0)],
+            faint: vec![b(14.0, 4.0, 18.0, 8.0)],
+            clip: "c".into(),
+        };
+        let h = half_size(&s);
+        assert_eq!(h.image.dimensions(), (10, 5));
+        assert_eq!(h.image.get_pixel(3, 2).0, [40, 80, 120]);
+        assert_eq!(h.boxes, vec![b(1.0, 1.0, 5.0, 3.0)]);
+        assert_eq!(h.visibility, vec![0.8]);
+        assert_eq!(h.ignore, vec![b(6.0, 0.0, 6.5, 0.5), b(0.0, 0.0, 1.5, 1.5)]);
+        assert_eq!(h.faint, vec![b(7.0, 2.0, 9.0, 4.0)]);
+    }
+
+    /// Share 0 or no half-size frames: every crop from the frames, one draw a
+    /// pick (as before half-size crops existed); share 1: every crop from the
+    /// half-size copy of the frame drawn; ½: both, about equally.
+    #[test]
+    fn half_size_crops_come_in_their_share() {
+        let frame = |w: u32| Sample {
+            image: RgbImage::new(w, w),
+            boxes: vec![],
+            visibility: vec![],
+            ignore: vec![],
+            faint: vec![],
+            clip: "c".into(),
+        };
+        let train = [frame(16), frame(18)];
+        let half = [frame(8), frame(9)];
+        let (mut a, mut b) = (Rng(7), Rng(7));
+        for _ in 0..50 {
+            let s = pick_sample(&train, &[], 0.5, &mut a);
+            assert_eq!(s.image.width(), [16, 18][b.below(2) as usize]);
+        }
+        let mut rng = Rng(7);
+        let widths = |share: f32, rng: &mut Rng| -> Vec<u32> {
+            (0..400)
+                .map(|_| pick_sample(&train, &half, share, rng).image.width())
+                .collect()
+        };
+        assert!(widths(0.0, &mut rng).iter().all(|&w| w >= 16));
+        assert!(widths(1.0, &mut rng).iter().all(|&w| w <= 9));
+        let small = widths(0.5, &mut rng).iter().filter(|&&w| w <= 9).count();
+        assert!((160..240).contains(&small), "{small} of 400 half-size");
+        let bad = TrainConfig {
+            half_share: 1.5,
+            ..TrainConfig::default()
+        };
+        let e = bad.check().unwrap_err().to_string();
+        assert!(e.contains("--half-share") && e.contains("1.5"), "{e}");
     }
 
     #[test]

@@ -42,6 +42,10 @@ pub struct TrainDetectorArgs {
     pub wide: bool,
     #[arg(value_parser = whole::<u64>, long, default_value_t = 0)]
     pub seed: u64,
+    /// Share of the crops cut from the views shrunk to half, as `--coarse` searches them at count
+    /// time: teaches the fish close to the lens at the size the coarse pass shows them (0 to 1)
+    #[arg(long, default_value_t = TrainConfig::default().half_share)]
+    pub half_share: f32,
     /// Field of view of the perspective view fisheye frames are corrected to (degrees), as `count`'s
     #[arg(long, default_value_t = 120.0)]
     pub view_fov: f32,
@@ -95,6 +99,7 @@ pub fn run(args: &TrainDetectorArgs) -> Result<()> {
         stride: args.stride,
         wide: args.wide,
         seed: args.seed,
+        half_share: args.half_share,
         max_frames: args.max_frames,
         faint_as_water: !args.ignore_faint,
         checkpoint_every: args.checkpoint_every,
