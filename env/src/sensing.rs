@@ -14,9 +14,11 @@
 //!
 //! The vector observation is `[u_x, u_y, u_z, depth / H, aggressor, target]`
 //! in the fish's local frame, `u = (0, 0, 1) − R⁻¹·f_front` (zero without a
-//! neighbour in front).
+//! neighbour in front). With the profile's `heading_of = "closing"` (not in
+//! the sources) `u` is of the neighbour that will come closest within
+//! [`CLOSING_HORIZON_S`] instead ([`closest_approach`]).
 
-use crate::config::{Extensions, NeighbourForm, PersonalSpaceOf};
+use crate::config::{Extensions, HeadingOf, NeighbourForm, PersonalSpaceOf};
 use crate::kinematics::{basis, fast_acos_deg};
 use crate::traits::Traits;
 use crate::world::{Chase, World};
@@ -38,6 +40,8 @@ pub(crate) struct Surroundings {
     /// each weighted by `1 + m · (1 − alignment)` with the profile's
     /// `personal_space_misalignment` m (1 when it is off).
     pub crowding: f32,
+    /// The neighbour whose heading `u` gives: the nearest in front, or with
+    /// `heading_of = "closing"` the one coming closest.
     pub nearest_front: Option<u32>,
     pub nearest_subordinate: Option<u32>,
 }
@@ -50,6 +54,7 @@ pub(crate) struct Surroundings {
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Neighbour {
     heading: Vec3,
+    speed: f32,
     bl: f32,
     species: u16,
     /// Not dominant and in no chase: a dominant fish may chase it.
@@ -62,6 +67,7 @@ pub(crate) fn gather_neighbours(world: &World, grid: &SpatialGrid, out: &mut [Ne
         let j = j as usize;
         *n = Neighbour {
             heading: world.heading[j],
+            speed: world.speed[j],
             bl: world.bl[j],
             species: world.species[j],
             free_subordinate: !world.dominant[j] && world.chase[j] == Chase::None,
@@ -174,6 +180,25 @@ fn personal_space_holds(d2: f32, along: f32, radius: f32, ahead: f32) -> bool {
     }
 }
 
+/// How far ahead `heading_of = "closing"` looks (s): about what a coho
+/// swims in one body length at its 1–1.5 BL/s, the length of the collider a
+/// contact is an overlap of.
+pub const CLOSING_HORIZON_S: f32 = 1.0;
+
+/// The least distance between two fish within the next `horizon` seconds if
+/// both keep their velocities: `rel` is the neighbour's offset, `v_rel` its
+/// velocity relative to the fish's. `|rel + v_rel·t*|` with
+/// `t* = clamp(−rel·v_rel / |v_rel|², 0, horizon)`.
+pub(crate) fn closest_approach(rel: Vec3, v_rel: Vec3, horizon: f32) -> f32 {
+    let vv = v_rel.length_squared();
+    let t = if vv > 1e-12 {
+        (-rel.dot(v_rel) / vv).clamp(0.0, horizon)
+    } else {
+        0.0
+    };
+    (rel + v_rel * t).length()
+}
+
 impl Sensing<'_> {
     /// Fill `frame` with what fish `i` sees and sum up its surroundings.
     pub fn sense(&self, i: usize, frame: &mut Frame) -> Surroundings {
@@ -207,6 +232,8 @@ impl Sensing<'_> {
         let partner = w.chase[i].partner();
         let wants_target = w.dominant[i] && w.chase[i] == Chase::None;
         let (mut front_d, mut sub_d) = (f32::INFINITY, f32::INFINITY);
+        let closing = self.extensions.heading_of == HeadingOf::Closing;
+        let (v_i, mut closest) = (f * w.speed[i], (f32::INFINITY, f32::INFINITY));
         let range2 = range * range;
         let mut spheres = SphereBatch::new();
         let cap = self.neighbour_cap;
@@ -249,7 +276,14 @@ impl Sensing<'_> {
                     nearest.offer(cap, d, align);
                 }
             }
-            if along > 0.0 && d < front_d {
+            if closing {
+                let v_rel = n.heading * n.speed - v_i;
+                let key = (closest_approach(rel, v_rel, CLOSING_HORIZON_S), d);
+                if key < closest {
+                    closest = key;
+                    seen.nearest_front = Some(j as u32);
+                }
+            } else if along > 0.0 && d < front_d {
                 front_d = d;
                 seen.nearest_front = Some(j as u32);
             }
@@ -303,5 +337,24 @@ impl Sensing<'_> {
         out[3] = -w.position[i].y / self.cage_height;
         out[4] = matches!(w.chase[i], Chase::Aggressor { .. }) as u8 as f32;
         out[5] = matches!(w.chase[i], Chase::Target { .. }) as u8 as f32;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A neighbour 1 m to the side closing at (−1, 0, 1): t* = 1/2 s, then
+    /// (0.5, 0, 0.5) apart, 0.7071 m; a horizon of 1/4 s stops it at
+    /// (0.75, 0, 0.25), 0.7906 m; one moving away or keeping pace is at its
+    /// closest now.
+    #[test]
+    fn closest_approach_by_hand() {
+        let rel = Vec3::X;
+        let near = |v: Vec3, h: f32| closest_approach(rel, v, h);
+        assert!((near(Vec3::new(-1.0, 0.0, 1.0), 1.0) - 0.5f32.sqrt()).abs() < 1e-6);
+        assert!((near(Vec3::new(-1.0, 0.0, 1.0), 0.25) - 0.625f32.sqrt()).abs() < 1e-6);
+        assert_eq!(near(Vec3::X, 1.0), 1.0);
+        assert_eq!(near(Vec3::ZERO, 1.0), 1.0);
     }
 }

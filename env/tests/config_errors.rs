@@ -285,3 +285,22 @@ fn a_lane_ahead_without_a_personal_space_is_refused() {
         ],
     );
 }
+
+/// What the policy sees must be the same in both phases of a profile: a
+/// `closing` heading in the pretraining alone is refused naming the file,
+/// the field and the other phase's file.
+#[test]
+fn a_heading_of_one_phase_only_is_refused() {
+    let root = configs_with("heading", "rewards/thesis/pretrain.toml", |t| {
+        format!("{t}\n[extensions]\nheading_of = \"closing\"\n")
+    });
+    assert_mentions(
+        &load_err(&root, "seabream_default"),
+        &[
+            "pretrain.toml",
+            "extensions.heading_of",
+            "closing here but front in",
+            "transfer.toml",
+        ],
+    );
+}

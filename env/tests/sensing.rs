@@ -144,3 +144,35 @@ fn the_chase_partner_has_its_own_channel() {
     assert_eq!((v[4], v[5]), (1.0, 0.0));
     assert_eq!((v[10], v[11]), (0.0, 1.0));
 }
+
+/// `u` of the nearest fish in front (SPEC §5) or, with `heading_of =
+/// "closing"`, of the one coming closest within 1 s. Coho of 0.49 m. Fish 0
+/// heads +z at 0.5 BL/s (0.245 m/s); fish 1 swims 0.5 m ahead on its path,
+/// parallel and as fast (closest approach 0.5 m); fish 2, 1.17 m off to the
+/// left front at (1, 0, 0.6), crosses towards its path at 2 BL/s (0.98 m/s):
+/// relative velocity (−0.98, 0, −0.245), t* = 1.127/1.0204 s → the horizon,
+/// 1 s, offset then (0.02, 0, 0.355): 0.356 m. Front: fish 1, u = 0.
+/// Closing: fish 2, heading −x world = −x local (the fish's right), u =
+/// (0, 0, 1) − (−1, 0, 0) = (1, 0, 1).
+#[test]
+fn u_of_the_closing_neighbour() {
+    use deepfoids_env::config::HeadingOf;
+    for (of, want) in [
+        (HeadingOf::Front, [0.0, 0.0, 0.0]),
+        (HeadingOf::Closing, [1.0, 0.0, 1.0]),
+    ] {
+        let mut s = scene("coho_default", 3);
+        s.rewards.extensions.heading_of = of;
+        let mut env = calm_env(s);
+        let c = Vec3::new(0.0, -2.3, -0.5);
+        place(&mut env, 0, c, Vec3::Z, 0.5);
+        place(&mut env, 1, c + Vec3::new(0.0, 0.0, 0.5), Vec3::Z, 0.5);
+        place(&mut env, 2, c + Vec3::new(1.0, 0.0, 0.6), -Vec3::X, 2.0);
+        env.observe_now();
+        let v = &env.output().behaviours[0].vectors[..3];
+        assert!(
+            (0..3).all(|k| close(v[k], want[k], 1e-5)),
+            "{of:?}: u = {v:?}, want {want:?}"
+        );
+    }
+}

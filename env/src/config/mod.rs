@@ -37,8 +37,8 @@ pub use error::ConfigError;
 pub use range::Range;
 pub use read::{Overrides, read_toml};
 pub use rewards::{
-    ActionTiming, Contacts, Extensions, NeighbourForm, PersonalSpaceOf, Phase, RewardTiming,
-    RewardWeights, Timing,
+    ActionTiming, Contacts, Extensions, HeadingOf, NeighbourForm, PersonalSpaceOf, Phase,
+    RewardTiming, RewardWeights, Timing,
 };
 pub use scene::{
     CageConfig, Clock, GroupConfig, ObstacleConfig, PhysicsConfig, SceneFile, parse_clock,
@@ -233,6 +233,28 @@ impl ConfigDirs {
         )?;
         let weights: RewardWeights = read_toml(&path)?;
         weights.check_bounds(&path)?;
+        // What the policy sees must not change between the phases: a
+        // transfer starts from the pretrained weights.
+        let other = match phase {
+            Phase::Pretrain => Phase::Transfer,
+            Phase::Transfer => Phase::Pretrain,
+        };
+        let other_path = dir.join(format!("{}.toml", other.as_str()));
+        if let Ok(o) = read_toml::<RewardWeights>(&other_path)
+            && o.extensions.heading_of != weights.extensions.heading_of
+        {
+            return Err(ConfigError::Invalid {
+                path,
+                field: "extensions.heading_of".into(),
+                message: format!(
+                    "{} here but {} in {}: what the policy sees must be the same in \
+                     both phases of a profile",
+                    weights.extensions.heading_of.as_str(),
+                    o.extensions.heading_of.as_str(),
+                    other_path.display()
+                ),
+            });
+        }
         Ok(weights)
     }
 }

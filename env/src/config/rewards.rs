@@ -138,6 +138,30 @@ pub enum PersonalSpaceOf {
     Pair,
 }
 
+/// Whose heading the vector observation's `u` gives (SPEC §5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum HeadingOf {
+    /// The nearest neighbour in front (SPEC §5; default).
+    #[default]
+    Front,
+    /// The neighbour within `d_sense` that will come closest within the next
+    /// [`crate::sensing::CLOSING_HORIZON_S`] seconds if both keep their
+    /// velocities (the least distance of closest approach, ties to the nearer
+    /// now): the one a collision is coming from. Not in the sources.
+    Closing,
+}
+
+impl HeadingOf {
+    /// As the profile files write it.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            HeadingOf::Front => "front",
+            HeadingOf::Closing => "closing",
+        }
+    }
+}
+
 /// The extensions of SPEC §6.2 the thesis cites but never formalises; all off by default.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -187,6 +211,12 @@ pub struct Extensions {
     /// inside (the velocity reflected off the plane, the collider moved back
     /// inside) and its episode goes on (SPEC §6.2).
     pub boundary_ends_episode: bool,
+    /// Whose heading the vector observation carries: the nearest neighbour
+    /// `front` (SPEC §5, default) or the `closing` one. Six contacts in ten
+    /// are paths crossing at ≈ 45° (NOTES, session 49), and the grid shows
+    /// where a neighbour is, not where it heads. It changes what the policy
+    /// sees, so a profile sets it in both phases (checked). Not in the sources.
+    pub heading_of: HeadingOf,
 }
 
 impl Default for Extensions {
@@ -202,6 +232,7 @@ impl Default for Extensions {
             conspecific_only: false,
             size_weighted: false,
             boundary_ends_episode: true,
+            heading_of: HeadingOf::Front,
         }
     }
 }
