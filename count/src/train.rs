@@ -853,6 +853,22 @@ pub fn train(
         }
     }
     let seconds = before + start.elapsed().as_secs_f64();
+    finish(model, data, cfg, out, (steps, seconds), (first, last), log)
+}
+
+/// The end of a [`train`] run of `steps` steps in `seconds` (its first loss
+/// and its last smoothed one beside them): save the weights, export the ONNX,
+/// score it on the val split (its confidence into the metadata) and write
+/// `report.json`.
+fn finish(
+    model: DetectorNet,
+    data: &Data,
+    cfg: &TrainConfig,
+    out: &Path,
+    (steps, seconds): (usize, f64),
+    (first, last): (f64, f64),
+    mut log: impl FnMut(&str),
+) -> Result<Report> {
     model
         .clone()
         .save_file(out.join("model.bpk"))
