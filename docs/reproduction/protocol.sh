@@ -1,6 +1,8 @@
 # The variant protocol's two steps, shared by variants.sh, transfer_variants.sh
 # and extend.sh (sourced, not run). Both skip what is finished and resume what
-# was interrupted. Expects BIN (the deepfoids binary) and OUT (the runs folder).
+# was interrupted. Expects BIN (the deepfoids binary) and OUT (the runs folder);
+# SEED, when set, is the training seed (otherwise train's default, 0): give
+# each seed its own OUT.
 
 # train PROFILE SCENE PHASE STEPS RUN [INIT]: one training run, initialised
 # from run INIT when given.
@@ -11,7 +13,7 @@ train() {
     [[ -d $OUT/$run ]] && resume=(--resume)
     "$BIN" train --reward-profile "$profile" --scene "$scene" --phase "$phase" \
         --steps "$steps" --run-id "$run" --runs-dir "$OUT" --eval-seconds 0 --quiet \
-        ${init:+--init-from "$OUT/$init"} "${resume[@]}"
+        ${SEED:+--seed "$SEED"} ${init:+--init-from "$OUT/$init"} "${resume[@]}"
 }
 
 # evaluate PROFILE SCENE PHASE RUN: sampled actions (as Unity's ML-Agents 1.x

@@ -11,7 +11,7 @@
 #
 # Env: BIN (target/release/deepfoids), OUT (runs/transfer-variants), BASE
 # (mean_then_budget_space20), PRE (4000000), TRANSFER (1000000), SCENES
-# ("coho_default density_dense").
+# ("coho_default density_dense"), SEED (the training seed; default 0).
 set -euo pipefail
 BIN=${BIN:-target/release/deepfoids}
 OUT=${OUT:-runs/transfer-variants}
