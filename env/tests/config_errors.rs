@@ -304,3 +304,23 @@ fn a_heading_of_one_phase_only_is_refused() {
         ],
     );
 }
+
+/// A profile is checked whole: a broken transfer file is refused when the
+/// pretraining loads, naming that file and its field, not hours later when
+/// the transfer starts.
+#[test]
+fn a_broken_transfer_file_is_refused_before_the_pretraining() {
+    let root = configs_with("transfer-nan", "rewards/thesis/transfer.toml", |t| {
+        t.replace("w_nc = 4.0", "w_nc = nan")
+    });
+    assert_mentions(
+        &load_err(&root, "seabream_default"),
+        &["rewards/thesis/transfer.toml", "w_nc", "finite"],
+    );
+    let root = configs_with("transfer-gone", "rewards/thesis/transfer.toml", |t| t);
+    std::fs::remove_file(root.join("rewards/thesis/transfer.toml")).unwrap();
+    assert_mentions(
+        &load_err(&root, "seabream_default"),
+        &["reward weights", "transfer", "rewards/thesis"],
+    );
+}

@@ -206,6 +206,8 @@ impl ConfigDirs {
     }
 
     /// The weights of `phase` in the reward profile, `rewards/<profile>/<phase>.toml`.
+    /// The other phase's file is read and checked as well (a profile is
+    /// refused whole), and both must agree on what the policy sees.
     pub fn rewards(&self, phase: Phase) -> Result<RewardWeights, ConfigError> {
         let profile = &self.reward_profile;
         self.check_root()?;
@@ -233,16 +235,22 @@ impl ConfigDirs {
         )?;
         let weights: RewardWeights = read_toml(&path)?;
         weights.check_bounds(&path)?;
-        // What the policy sees must not change between the phases: a
-        // transfer starts from the pretrained weights.
+        // The other phase's file is checked too: a broken transfer file is
+        // refused before a pretraining of hours, not after it.
         let other = match phase {
             Phase::Pretrain => Phase::Transfer,
             Phase::Transfer => Phase::Pretrain,
         };
-        let other_path = dir.join(format!("{}.toml", other.as_str()));
-        if let Ok(o) = read_toml::<RewardWeights>(&other_path)
-            && o.extensions.heading_of != weights.extensions.heading_of
-        {
+        let other_path = self.named(
+            "reward weights",
+            &format!("rewards/{profile}"),
+            other.as_str(),
+        )?;
+        let o: RewardWeights = read_toml(&other_path)?;
+        o.check_bounds(&other_path)?;
+        // What the policy sees must not change between the phases: a
+        // transfer starts from the pretrained weights.
+        if o.extensions.heading_of != weights.extensions.heading_of {
             return Err(ConfigError::Invalid {
                 path,
                 field: "extensions.heading_of".into(),
