@@ -230,6 +230,14 @@ fn train_export_and_eval_through_onnx() {
         ),
         "--resume",
     );
+    // A finished run has no checkpoint to resume: the refusal says how to go on.
+    cli_fails(
+        &format!(
+            "train --scene seabream_default --steps 1200 --allow-no-update --seed 5 --runs-dir {} --run-id tiny --resume",
+            runs.display()
+        ),
+        "it finished",
+    );
 
     let onnx = runs.join("policy.onnx");
     let o = cli_ok(&format!(

@@ -870,7 +870,8 @@ fn checkpoints_are_never_used_silently() {
             .unwrap()
     };
     let o = transfer();
-    assert!(!o.status.success(), "{}", text(&o));
+    assert_refused(&o, "seabream_regular.model.bpk");
+    assert_refused(&o, "a truncated file");
     assert!(!runs.join("t").exists(), "{:?}", names_in(&runs));
     assert!(
         !names_in(&runs).iter().any(|n| n.ends_with(".start")),

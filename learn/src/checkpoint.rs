@@ -226,7 +226,7 @@ pub fn load_module<M: Module>(module: M, file: &Path) -> Result<M> {
     module.try_load_file(file).map_err(|e| LearnError::Record {
         action: "load",
         path: file.to_path_buf(),
-        reason: format!("{e:?}"),
+        reason: format!("{e} (a truncated file, or not the weights of this network)"),
     })
 }
 

@@ -491,7 +491,17 @@ fn resume_session<T: Trainer>(trainer: &T, args: &mut RunArgs) -> Result<Session
     };
     let mut all = checkpoint::checkpoints(&args.run_dir);
     if all.is_empty() {
-        return Err(resume_error("it has no checkpoint to resume from".into()));
+        let finished = args.run_dir.join("final");
+        return Err(resume_error(if finished.is_dir() {
+            format!(
+                "it has no checkpoint to resume from; it finished ({}): to train on from \
+                 its weights, start a new run with --init-from {}",
+                finished.display(),
+                args.run_dir.display()
+            )
+        } else {
+            "it has no checkpoint to resume from".into()
+        }));
     }
     let mut passed = Vec::new();
     while let Some((_, dir)) = all.pop() {
