@@ -78,6 +78,8 @@ pub struct GridSensor {
     dz: [f32; CELLS],
     /// Sine of the lower edge of each row (row 0 spans 81°–90°).
     row_floor_sin: [f32; EL_CELLS],
+    /// Sine of each row's centre elevation (the cells' rays).
+    row_centre_sin: [f32; EL_CELLS],
 }
 
 impl Default for GridSensor {
@@ -95,6 +97,7 @@ impl GridSensor {
             row_floor_sin: std::array::from_fn(|h| {
                 (90.0 - EL_STEP_DEG * (h as f32 + 1.0)).to_radians().sin()
             }),
+            row_centre_sin: std::array::from_fn(|h| Self::elevation_deg(h).to_radians().sin()),
         };
         for h in 0..EL_CELLS {
             for w in 0..AZ_CELLS {
@@ -184,6 +187,12 @@ fn columns_mask((lo, hi): (usize, usize)) -> u64 {
         (u64::MAX >> (63 - hi)) & (u64::MAX << lo)
     }
 }
+
+/// How far past a sphere's angular bounds (radians, and the same in sines)
+/// [`Frame::add_spheres`] still looks for cell centres: the exact test is a
+/// float dot product against `cos α`, which near α = 0 can pass a centre up to
+/// ≈ 3.5e−4 rad outside the disc, so the bounds keep every cell it can pass.
+const BOUNDS_SLACK: f32 = 2e-3;
 
 /// Spheres set up together by [`Frame::add_spheres`].
 pub const SPHERE_BATCH: usize = 256;
@@ -288,9 +297,13 @@ impl Frame {
     ///
     /// Candidate cells come from bounds that need no trigonometry but one
     /// polynomial `atan2`: with `y = sin el`, `s = sin α = r/d`, `c = cos α`,
-    /// `sin(el ± α) = y·c ± cos el·s` picks the rows (against a table of the
-    /// row edges' sines) and `asin(x) ≤ x / √(1 − x²)`, `x = s / cos el_max`,
-    /// bounds the azimuth half-width; every candidate is then tested exactly.
+    /// `sin(el ± α) = y·c ± cos el·s` picks the rows and `asin(x) ≤ x / √(1 − x²)`,
+    /// `x = s / cos el_max`, bounds the azimuth half-width. A cell is tested at
+    /// its centre, so only rows and columns whose *centre* lies within those
+    /// bounds (plus [`BOUNDS_SLACK`]) are candidates: in a dense school most
+    /// spheres are far and span less than a cell, and bounds by the cells'
+    /// edges made three of every four tests fail. Every candidate is then
+    /// tested exactly (the frame is the same as testing every cell).
     /// The set-up runs as loops over the whole batch, which vectorise.
     ///
     /// The spheres are then drawn nearest first, and a bit per cell marks the
@@ -312,6 +325,7 @@ impl Frame {
             [0f32; SPHERE_BATCH],
             [0f32; SPHERE_BATCH],
         );
+        // The bounds' sines, widened by the slack.
         let (mut sin_hi, mut sin_lo) = ([0f32; SPHERE_BATCH], [0f32; SPHERE_BATCH]);
         // Nearest first: the distance's bits (positive floats order as their
         // bits) above the index, so equal distances keep the batch's order.
@@ -342,12 +356,12 @@ impl Frame {
             sin_hi[i] = if cos_hi < 0.0 {
                 2.0
             } else {
-                y * c + cos_el * s
+                y * c + cos_el * s + BOUNDS_SLACK
             };
             sin_lo[i] = if cos_lo < 0.0 {
                 -2.0
             } else {
-                y * c - cos_el * s
+                y * c - cos_el * s - BOUNDS_SLACK
             };
             // Columns: cos el_max = cos(|el| + α).
             let cos_el_max = cos_el * c - y.abs() * s;
@@ -362,16 +376,18 @@ impl Frame {
                 2.0 * PI
             };
         }
-        let (mut row_c, mut row_hi, mut row_lo) = (
+        // The row the centre falls in, and the rows `first..end` whose centre
+        // elevation lies within the bounds (rows run from the top down).
+        let (mut row_c, mut first, mut end) = (
             [0u8; SPHERE_BATCH],
             [0u8; SPHERE_BATCH],
             [0u8; SPHERE_BATCH],
         );
-        for &edge in &sensor.row_floor_sin {
+        for (&edge, &centre) in sensor.row_floor_sin.iter().zip(&sensor.row_centre_sin) {
             for i in 0..n {
                 row_c[i] += (uy[i] < edge) as u8;
-                row_hi[i] += (sin_hi[i] < edge) as u8;
-                row_lo[i] += (sin_lo[i] < edge) as u8;
+                first[i] += (centre > sin_hi[i]) as u8;
+                end[i] += (centre >= sin_lo[i]) as u8;
             }
         }
         let order = &mut order[..valid];
@@ -379,6 +395,18 @@ impl Frame {
         let limit = AZ_LIMIT_DEG.to_radians();
         let step_az = AZ_STEP_DEG.to_radians();
         let col = |a: f32| ((a + limit) / step_az).clamp(0.0, (AZ_CELLS - 1) as f32) as usize;
+        // The columns whose centre azimuth lies in `lo..=hi` (plus the slack).
+        let centres = |lo: f32, hi: f32| {
+            let a = ((lo - BOUNDS_SLACK + limit) / step_az - 0.5)
+                .ceil()
+                .max(0.0);
+            let b = ((hi + BOUNDS_SLACK + limit) / step_az - 0.5).floor();
+            if b < a || a > (AZ_CELLS - 1) as f32 {
+                (1, 0)
+            } else {
+                (a as usize, b.min((AZ_CELLS - 1) as f32) as usize)
+            }
+        };
         let none = (1, 0);
         // Bit `w` of `taken[h]`: cell (h, w) holds a sphere of this batch.
         let mut taken = [0u64; EL_CELLS];
@@ -395,36 +423,24 @@ impl Frame {
                     taken[h] |= 1 << w;
                 }
             }
-            let h_lo = (row_hi[i] as usize).min(EL_CELLS - 1);
-            let h_hi = (row_lo[i] as usize).min(EL_CELLS - 1);
+            let rows = first[i] as usize..end[i] as usize;
             // Column ranges; a range wrapping past ±180° (behind the fish) splits in two.
             let (main, wrapped) = if half[i] >= PI {
                 ((0, AZ_CELLS - 1), none) // around a pole: every column
             } else {
                 let (az_lo, az_hi) = (az[i] - half[i], az[i] + half[i]);
-                let main = if az_hi < -limit || az_lo >= limit {
-                    none
-                } else {
-                    (col(az_lo), col(az_hi))
-                };
                 let wrapped = if az_hi > PI {
-                    let end = az_hi - 2.0 * PI;
-                    if end >= -limit { (0, col(end)) } else { none }
+                    centres(-PI, az_hi - 2.0 * PI)
                 } else if az_lo < -PI {
-                    let start = az_lo + 2.0 * PI;
-                    if start < limit {
-                        (col(start), AZ_CELLS - 1)
-                    } else {
-                        none
-                    }
+                    centres(az_lo + 2.0 * PI, PI)
                 } else {
                     none
                 };
-                (main, wrapped)
+                (centres(az_lo, az_hi), wrapped)
             };
             let columns = columns_mask(main) | columns_mask(wrapped);
             let (dx, dy, dz, c) = (ux[i], uy[i], uz[i], cos_a[i]);
-            for (h, taken) in taken.iter_mut().enumerate().take(h_hi + 1).skip(h_lo) {
+            for (h, taken) in taken.iter_mut().enumerate().take(rows.end).skip(rows.start) {
                 let mut todo = columns & !*taken;
                 while todo != 0 {
                     let w = todo.trailing_zeros() as usize;
@@ -853,7 +869,69 @@ mod tests {
             v
         }
 
+        /// The frame of `spheres` by testing every cell against every sphere
+        /// with `add_spheres`' own float operations: per cell the nearest
+        /// sphere covering it (the first of equals), covering meaning its centre
+        /// cell or a cell centre within the angular radius.
+        fn every_cell(sensor: &GridSensor, spheres: &[(Vec3, f32)], range: f32) -> Vec<f32> {
+            let limit = AZ_LIMIT_DEG.to_radians();
+            let step = AZ_STEP_DEG.to_radians();
+            let mut dist = vec![range; CELLS];
+            for &(p, r) in spheres {
+                let d2 = p.x * p.x + p.y * p.y + p.z * p.z;
+                if !(d2 < range * range && d2 > 1e-12) {
+                    continue;
+                }
+                let di = d2.max(1e-12).sqrt();
+                let inv = 1.0 / di;
+                let (ux, uy, uz) = (p.x * inv, p.y * inv, p.z * inv);
+                let s = (r / di).min(1.0);
+                let c = (1.0 - s * s).max(0.0).sqrt();
+                let az = fast_atan2(-ux, uz);
+                let centre = (az.abs() < limit).then(|| {
+                    let h: usize = sensor
+                        .row_floor_sin
+                        .iter()
+                        .map(|&e| (uy < e) as usize)
+                        .sum();
+                    let w = ((az + limit) / step).clamp(0.0, (AZ_CELLS - 1) as f32) as usize;
+                    h.min(EL_CELLS - 1) * AZ_CELLS + w
+                });
+                for (cell, best) in dist.iter_mut().enumerate() {
+                    let cos = sensor.dx[cell] * ux + sensor.dy[cell] * uy + sensor.dz[cell] * uz;
+                    if (cos >= c || centre == Some(cell)) && di < *best {
+                        *best = di;
+                    }
+                }
+            }
+            dist
+        }
+
         proptest! {
+            /// The candidate bounds (cell centres, with their slack) drop no cell
+            /// the exact test would take: the frame is, bit for bit, that of
+            /// testing every cell — far, tiny, near, polar and wrapping spheres.
+            #[test]
+            fn the_bounds_keep_every_cell_the_test_takes(
+                spheres in prop::collection::vec(
+                    (-180.0f32..180.0, -90.0f32..90.0, 0.02f32..3.0, prop_oneof![0.0f32..0.02, 0.0f32..0.3, 0.0f32..2.0]),
+                    1..120,
+                )
+            ) {
+                let sensor = GridSensor::new();
+                let rel: Vec<(Vec3, f32)> = spheres
+                    .iter()
+                    .map(|&(az, el, d, r)| (direction(az.to_radians(), el.to_radians()) * d, r))
+                    .collect();
+                let mut f = Frame::new(3.0);
+                let mut batch = SphereBatch::new();
+                for &(p, r) in &rel {
+                    batch.push(p, r, SeenKind::Fish);
+                }
+                f.add_spheres(&sensor, &batch);
+                prop_assert_eq!(&f.dist[..], &every_cell(&sensor, &rel, 3.0)[..]);
+            }
+
             /// A batch gives exactly the frame of the same spheres added one by one.
             #[test]
             fn a_batch_equals_spheres_one_by_one(
