@@ -354,6 +354,22 @@ fn compare_ppo_and_sac_runs() {
         ),
         "nope",
     );
+    // A run that cannot drive the scene (another species) is refused before
+    // anything is evaluated or written.
+    let mismatch = runs.join("mismatch");
+    let t = cli_fails(
+        &format!(
+            "compare {} pretrained:coho --seconds 2 --seeds 1 --out {}",
+            runs.join("ppo").to_str().unwrap(),
+            mismatch.display()
+        ),
+        "cannot drive scene seabream_default",
+    );
+    assert!(
+        t.contains("coho_regular") && !t.contains("evaluating"),
+        "{t}"
+    );
+    assert!(!mismatch.exists(), "{t}");
 }
 
 /// `pipeline --species all`: the three species pretrained (here one decision

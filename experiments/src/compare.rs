@@ -152,6 +152,15 @@ pub fn run(dirs: &ConfigDirs, args: &CompareOptions) -> Result<()> {
         .clone()
         .unwrap_or_else(|| runs[0].state.scene.clone());
     let scene = load_scene(dirs, &scene_id, runs[0].state.phase)?;
+    // Every run must be able to drive the scene before any is evaluated: a
+    // mismatch (another species, a missing behaviour) is refused at once, not
+    // after minutes of evaluating the runs before it, and writes nothing.
+    let probe = Env::with_grid_format(scene.clone(), 0, GridFormat::Bytes);
+    for r in &runs {
+        load_trained(&r.dir, None, &probe, args.deterministic, 0)
+            .with_context(|| format!("{} cannot drive scene {}", r.label, scene.id))?;
+    }
+    drop(probe);
     let _lock = lock_dir(&args.out)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
