@@ -183,4 +183,21 @@ fn interrupted_render_continues_identically() {
         "other arguments",
     );
     let _ = std::fs::remove_dir_all(&out);
+    // A policy of another species is refused before the folder is made.
+    let mismatch = out.with_extension("mismatch");
+    let t = fails(
+        &deepfoids(&[
+            "render",
+            "--scene",
+            "seabream_default",
+            "--policy",
+            "pretrained:coho",
+            "--frames",
+            "2",
+            "--out",
+            mismatch.to_str().unwrap(),
+        ]),
+        "no policy for behaviour seabream_regular",
+    );
+    assert!(!mismatch.exists(), "{t}");
 }

@@ -161,6 +161,15 @@ pub fn render_dataset(
             }
         })
         .collect::<Result<_>>()?;
+    // The policy must drive the scene before the folder is touched: a
+    // mismatch (another species, a missing file) leaves nothing behind.
+    Clip::new(
+        dirs,
+        scene.clone(),
+        seed,
+        &spec.policy,
+        &spec.policy_options,
+    )?;
     let _lock = lock_dir(&spec.out)?;
     let dataset = Dataset::new(
         &spec.out,
