@@ -194,6 +194,22 @@ fn columns_mask((lo, hi): (usize, usize)) -> u64 {
 /// ≈ 3.5e−4 rad outside the disc, so the bounds keep every cell it can pass.
 const BOUNDS_SLACK: f32 = 2e-3;
 
+/// `x.floor()` for |x| < 2³¹ without `floorf` (x86-64's baseline has no
+/// rounding instruction, so `floor()` is a library call): the truncation,
+/// less one where it lies above `x`.
+#[inline]
+fn floor(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    t - (t > x) as i32 as f32
+}
+
+/// `x.ceil()` for |x| < 2³¹ without `ceilf` (see [`floor`]); −0 comes out as 0.
+#[inline]
+fn ceil(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    t + (t < x) as i32 as f32
+}
+
 /// Spheres set up together by [`Frame::add_spheres`].
 pub const SPHERE_BATCH: usize = 256;
 
@@ -397,10 +413,8 @@ impl Frame {
         let col = |a: f32| ((a + limit) / step_az).clamp(0.0, (AZ_CELLS - 1) as f32) as usize;
         // The columns whose centre azimuth lies in `lo..=hi` (plus the slack).
         let centres = |lo: f32, hi: f32| {
-            let a = ((lo - BOUNDS_SLACK + limit) / step_az - 0.5)
-                .ceil()
-                .max(0.0);
-            let b = ((hi + BOUNDS_SLACK + limit) / step_az - 0.5).floor();
+            let a = ceil((lo - BOUNDS_SLACK + limit) / step_az - 0.5).max(0.0);
+            let b = floor((hi + BOUNDS_SLACK + limit) / step_az - 0.5);
             if b < a || a > (AZ_CELLS - 1) as f32 {
                 (1, 0)
             } else {
@@ -558,6 +572,27 @@ pub fn reset_stack<T: FrameCell>(stack: &mut [T]) -> &mut [T] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `floor` and `ceil` agree with the library's on integers, halves and
+    /// their neighbouring floats, both signs, and a sweep (−0 aside, which
+    /// `ceil` gives as 0 and `max(0.0)` makes 0 either way).
+    #[test]
+    fn floor_and_ceil_match_the_library() {
+        let mut xs = vec![0.0f32, -0.0, 1e-30, -1e-30, 2.0e9, -2.0e9];
+        for k in -80..=80 {
+            let x = k as f32 * 0.5;
+            xs.extend([
+                x,
+                f32::from_bits(x.to_bits() + 1),
+                f32::from_bits(x.to_bits().max(1) - 1),
+            ]);
+        }
+        xs.extend((-100_000..=100_000).map(|i| i as f32 * 1.37e-3));
+        for x in xs {
+            assert_eq!(floor(x), x.floor(), "floor({x:e})");
+            assert!(ceil(x) == x.ceil(), "ceil({x:e})");
+        }
+    }
 
     fn at(frame: &[f32], ch: Channel, h: usize, w: usize) -> f32 {
         frame[ch as usize * CELLS + h * AZ_CELLS + w]
