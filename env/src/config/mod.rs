@@ -228,26 +228,23 @@ impl ConfigDirs {
                 available: self.reward_profiles(),
             });
         }
-        let path = self.named(
-            "reward weights",
-            &format!("rewards/{profile}"),
-            phase.as_str(),
-        )?;
-        let weights: RewardWeights = read_toml(&path)?;
-        weights.check_bounds(&path)?;
+        let load = |phase: Phase| -> Result<(PathBuf, RewardWeights), ConfigError> {
+            let path = self.named(
+                "reward weights",
+                &format!("rewards/{profile}"),
+                phase.as_str(),
+            )?;
+            let weights: RewardWeights = read_toml(&path)?;
+            weights.check_bounds(&path)?;
+            Ok((path, weights))
+        };
+        let (path, weights) = load(phase)?;
         // The other phase's file is checked too: a broken transfer file is
         // refused before a pretraining of hours, not after it.
-        let other = match phase {
+        let (other_path, o) = load(match phase {
             Phase::Pretrain => Phase::Transfer,
             Phase::Transfer => Phase::Pretrain,
-        };
-        let other_path = self.named(
-            "reward weights",
-            &format!("rewards/{profile}"),
-            other.as_str(),
-        )?;
-        let o: RewardWeights = read_toml(&other_path)?;
-        o.check_bounds(&other_path)?;
+        })?;
         // What the policy sees must not change between the phases: a
         // transfer starts from the pretrained weights.
         if o.extensions.heading_of != weights.extensions.heading_of {
