@@ -18,7 +18,7 @@
 //! the sources) `u` is of the neighbour that will come closest within
 //! [`CLOSING_HORIZON_S`] instead ([`closest_approach`]).
 
-use crate::config::{Extensions, HeadingOf, NeighbourForm, PersonalSpaceOf};
+use crate::config::{Extensions, HeadingOf, NeighbourForm, NeighbourWeight, PersonalSpaceOf};
 use crate::kinematics::{basis, fast_acos_deg};
 use crate::traits::Traits;
 use crate::world::{Chase, World};
@@ -268,6 +268,9 @@ impl Sensing<'_> {
                 let mut align = alignment(f, n.heading);
                 if ext.size_weighted {
                     align *= bl.min(n.bl) / bl.max(n.bl);
+                }
+                if ext.neighbour_weight == NeighbourWeight::Proximity {
+                    align *= 4.0 * (1.0 - d / range);
                 }
                 if cap == 0 {
                     seen.alignment_sum += align;

@@ -366,6 +366,37 @@ fn neighbour_budget_scales_the_sum() {
     }
 }
 
+/// The proximity weight `4 · (1 − d/d_sense)` (d_sense = 1.02 m) on three
+/// parallel neighbours 0.3, 0.51 and 0.9 m to the side, all at one speed (so
+/// the distances hold through the decision): 1.5 · (2.82353 + 2 + 0.47059) =
+/// 7.9412; with a budget of 2, two thirds of it (5.2941). The even weight
+/// keeps the thesis' 1.5 · 3 = 4.5.
+#[test]
+fn neighbour_proximity_weight() {
+    use deepfoids_env::config::NeighbourWeight;
+    for (weight, budget, want) in [
+        (NeighbourWeight::Even, 0u32, 4.5f32),
+        (NeighbourWeight::Proximity, 0, 7.9412),
+        (NeighbourWeight::Proximity, 2, 5.2941),
+    ] {
+        let mut s = scene("seabream_default", 4);
+        s.rewards.extensions.neighbour_weight = weight;
+        s.rewards.extensions.neighbour_budget = budget;
+        let mut env = calm_env(s);
+        let c = Vec3::new(-0.5, -1.5, -0.3);
+        for (i, dx) in [0.0f32, 0.3, 0.51, 0.9].into_iter().enumerate() {
+            place(&mut env, i, c + Vec3::new(dx, 0.0, 0.0), Vec3::Z, 0.2);
+        }
+        env.observe_now();
+        env.step(&zeros(&env)).unwrap();
+        let nd = terms(&env, 0)[ND];
+        assert!(
+            close(nd, want, 2e-3),
+            "{weight:?} budget {budget}: {nd}, want {want}"
+        );
+    }
+}
+
 /// Size assortment: a parallel neighbour half as long counts half:
 /// r_ND = 1.5 · 1 · 0.17/0.34 = 0.75 (for both fish).
 #[test]

@@ -124,6 +124,23 @@ pub enum NeighbourForm {
     Sqrt,
 }
 
+/// How `r_ND` weighs a neighbour by its distance (SPEC §6.2; ours).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum NeighbourWeight {
+    /// Every neighbour within `d_sense` alike: the thesis' sum (default).
+    #[default]
+    Even,
+    /// A neighbour `d` away weighs `4 · (1 − d / d_sense)`: the nearest count
+    /// most, one at the edge of the range nothing, and neighbours spread evenly
+    /// through the sensing sphere weigh 1 on average (the mean of `1 − r/R`
+    /// over a ball is 1/4), so an even school earns what the sum pays. A
+    /// school touches as often as fish that ignore each other unless the
+    /// nearest neighbours swim parallel (NOTES, session 52), and the sum over
+    /// up to 90 of them hardly pays for that. Not in the sources.
+    Proximity,
+}
+
 /// Whose body length SPEC §6.2's personal space is measured in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
@@ -169,6 +186,9 @@ pub struct Extensions {
     /// `r_ND` as the thesis' `sum` (default), the `mean` over the neighbours counted,
     /// or the sum over `sqrt` of their number.
     pub neighbour_form: NeighbourForm,
+    /// Each neighbour's `r_ND` term `even`ly (the thesis', default) or by its
+    /// `proximity` ([`NeighbourWeight`]).
+    pub neighbour_weight: NeighbourWeight,
     /// Personal space (Føre et al. 2009: ≥ 0.66 BL) in BL: a neighbour nearer
     /// than this does not count for `r_ND`. 0 (default): off.
     pub personal_space_bl: f32,
@@ -223,6 +243,7 @@ impl Default for Extensions {
     fn default() -> Self {
         Self {
             neighbour_form: NeighbourForm::Sum,
+            neighbour_weight: NeighbourWeight::Even,
             personal_space_bl: 0.0,
             personal_space_of: PersonalSpaceOf::Own,
             personal_space_ahead_bl: 0.0,
