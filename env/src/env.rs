@@ -599,6 +599,20 @@ impl Env {
         Ok(())
     }
 
+    /// Whether the mirrored fish (the profile's `mirrored_share`) see and
+    /// steer mirrored from the next observation on; on unless a rule-based
+    /// baseline drives ([`crate::Policy::mirrors`]). Whether each fish is
+    /// mirrored is drawn from the seed when the env is built.
+    pub fn set_mirroring(&mut self, on: bool) {
+        self.model.traits.mirroring = on;
+    }
+
+    /// Whether fish `i` sees and steers as the policy's mirror image now
+    /// (drawn from the profile's `mirrored_share`; see [`Env::set_mirroring`]).
+    pub fn is_mirrored(&self, i: usize) -> bool {
+        self.model.traits.is_mirrored(i)
+    }
+
     /// How actions act from the next decision on (SPEC §4), overriding the
     /// reward profile's `timing.actions` (a rule-based policy fixes its own).
     pub fn set_action_timing(&mut self, timing: crate::config::ActionTiming) {

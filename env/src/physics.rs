@@ -149,7 +149,11 @@ impl Physics<'_> {
                 // speeds) applies from the decision on: the speed is clamped into it.
                 let range = [p.speed_bl[0] * bl[a], p.speed_bl[1] * bl[a]];
                 let clamped = speed.clamp(range[0], range[1]);
-                let [a0, a1, a2] = [act[0], act[1], act[2]].map(|x| x.clamp(-1.0, 1.0));
+                let [a0, a1, mut a2] = [act[0], act[1], act[2]].map(|x| x.clamp(-1.0, 1.0));
+                // A mirrored fish (`mirrored_share`) turns the other way.
+                if self.traits.is_mirrored(r.start + a) {
+                    a2 = -a2;
+                }
                 let dv_step = if stepwise {
                     Vec3::ZERO
                 } else {

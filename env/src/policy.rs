@@ -47,6 +47,15 @@ pub trait Policy {
         None
     }
 
+    /// Whether the env's mirrored fish (the reward profile's
+    /// `mirrored_share`) act as this policy's mirror image. A policy that acts
+    /// on the observations: yes (default). A rule-based model that steers
+    /// from the world, not from what the fish sees: no, [`act_and_step`]
+    /// turns mirroring off.
+    fn mirrors(&self) -> bool {
+        true
+    }
+
     /// How this policy reads the grids, if it cares: the fused-kernel actors
     /// act on bytes, the ONNX runtime on floats. [`act_and_step`] sets it on
     /// the env. Default: `None` (whatever the env hands out).
@@ -78,6 +87,7 @@ pub fn act_and_step<'e>(
     if let Some(f) = policy.grid_format() {
         env.set_grid_format(f);
     }
+    env.set_mirroring(policy.mirrors());
     policy
         .act(env, actions)
         .map_err(|source| DriveError::Policy {

@@ -27,6 +27,8 @@ pub enum Purpose {
     Shuffle = 7,
     /// Replay sampling and the reparameterisation noise of off-policy updates.
     Replay = 8,
+    /// Which fish act as the policy's mirror image (`mirrored_share`).
+    Handedness = 9,
 }
 
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;

@@ -200,7 +200,8 @@ pub(crate) fn closest_approach(rel: Vec3, v_rel: Vec3, horizon: f32) -> f32 {
 }
 
 impl Sensing<'_> {
-    /// Fill `frame` with what fish `i` sees and sum up its surroundings.
+    /// Fill `frame` with what fish `i` sees and sum up its surroundings. A
+    /// mirrored fish (the profile's `mirrored_share`) sees the frame mirrored.
     pub fn sense(&self, i: usize, frame: &mut Frame) -> Surroundings {
         let w = self.world;
         let range = self.traits.sense[i];
@@ -321,10 +322,14 @@ impl Sensing<'_> {
                 NeighbourForm::Sqrt => seen.alignment_sum /= (counted as f32).sqrt(),
             }
         }
+        if self.traits.is_mirrored(i) {
+            frame.mirror();
+        }
         seen
     }
 
-    /// `[u (3), depth / H, aggressor, target]`; the roles are those of the state now.
+    /// `[u (3), depth / H, aggressor, target]`; the roles are those of the state
+    /// now. A mirrored fish sees `u_x` negated.
     pub fn vector_obs(&self, i: usize, seen: &Surroundings, out: &mut [f32]) {
         let w = self.world;
         let u = match seen.nearest_front {
@@ -334,7 +339,11 @@ impl Sensing<'_> {
             }
             None => Vec3::ZERO,
         };
-        out[0] = u.x;
+        out[0] = if self.traits.is_mirrored(i) {
+            -u.x
+        } else {
+            u.x
+        };
         out[1] = u.y;
         out[2] = u.z;
         out[3] = -w.position[i].y / self.cage_height;

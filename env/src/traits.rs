@@ -7,7 +7,9 @@
 //!   below `I_lpref` is reset to the midpoint of its range, the Foids rule);
 //!   from `(seed, Dominance, behaviour)`: exactly `round(0.2·n)` dominant fish
 //!   of each behaviour. These live in the public [`World`] (`bl`,
-//!   `light_pref`, `dominant`, `behaviour`, `species`).
+//!   `light_pref`, `dominant`, `behaviour`, `species`). From
+//!   `(seed, Handedness, behaviour)`: exactly `round(mirrored_share · n)`
+//!   mirrored fish of each behaviour (the reward profile's extension).
 //! * Derived from the species and `BL`, fixed: the box collider's half extents
 //!   and bounding radius, the visual radius the grid sensor sees, the sensing
 //!   range `d_sense` — here, in `Traits`.
@@ -105,6 +107,22 @@ pub(crate) struct Traits {
     pub sense: Vec<f32>,
     /// The model's parameters for each fish (BL units, see [`FishParams`]).
     pub params: Vec<FishParams>,
+    /// Whether the fish acts as the policy's mirror image (the profile's
+    /// `mirrored_share`): its grid's azimuth columns reversed, `u_x` and its
+    /// yaw action negated.
+    pub mirrored: Vec<bool>,
+    /// Whether the mirrored fish act mirrored: off while a rule-based
+    /// baseline, which steers from the world and not from the observations,
+    /// drives the env ([`crate::Env::set_mirroring`]).
+    pub mirroring: bool,
+}
+
+impl Traits {
+    /// Whether fish `i` sees and steers as the policy's mirror image now.
+    #[inline]
+    pub fn is_mirrored(&self, i: usize) -> bool {
+        self.mirroring && self.mirrored[i]
+    }
 }
 
 /// Draw the school of `scene` from `seed`: the behaviours' constants, each
@@ -115,6 +133,7 @@ pub(crate) fn draw(scene: &Scene, seed: u64) -> (Vec<BehaviourInfo>, World, Trai
     let species_names = scene.species_names();
     let mut info = Vec::new();
     let mut world = World::default();
+    let mut mirrored = Vec::new();
     let mut first = 0;
     for (b, spec) in scene.behaviours.iter().enumerate() {
         let sp = &spec.species;
@@ -159,17 +178,17 @@ pub(crate) fn draw(scene: &Scene, seed: u64) -> (Vec<BehaviourInfo>, World, Trai
             world.bl.push(bl);
             world.light_pref.push([lpref, hpref]);
         }
-        // Dominance: exactly round(fraction · n) fish of the behaviour, by a partial shuffle.
+        // Dominance: exactly round(fraction · n) fish of the behaviour.
         let n_dom = (sp.dominant_fraction * spec.count as f32).round() as usize;
-        let mut idx: Vec<usize> = (first..first + spec.count).collect();
-        let mut s = Stream::new(seed, Purpose::Dominance, b as u64, 0);
-        for j in 0..n_dom {
-            let pick = j + s.below(idx.len() - j);
-            idx.swap(j, pick);
-        }
         world.dominant.resize(first + spec.count, false);
-        for &i in &idx[..n_dom] {
+        for i in pick(seed, Purpose::Dominance, b, first, spec.count, n_dom) {
             world.dominant[i] = true;
+        }
+        let n_mirror =
+            (scene.rewards.extensions.mirrored_share * spec.count as f32).round() as usize;
+        mirrored.resize(first + spec.count, false);
+        for i in pick(seed, Purpose::Handedness, b, first, spec.count, n_mirror) {
+            mirrored[i] = true;
         }
         first += spec.count;
     }
@@ -199,8 +218,30 @@ pub(crate) fn draw(scene: &Scene, seed: u64) -> (Vec<BehaviourInfo>, World, Trai
             .collect(),
         sense: (0..n).map(|i| of(i).sense_bl * world.bl[i]).collect(),
         params: (0..n).map(|i| of(i).params).collect(),
+        mirrored,
+        mirroring: true,
     };
     (info, world, traits)
+}
+
+/// `k` of the fish `first..first + count` of behaviour `b`, by a partial
+/// shuffle of the stream `(seed, purpose, b)`.
+fn pick(
+    seed: u64,
+    purpose: Purpose,
+    b: usize,
+    first: usize,
+    count: usize,
+    k: usize,
+) -> impl Iterator<Item = usize> {
+    let mut idx: Vec<usize> = (first..first + count).collect();
+    let mut s = Stream::new(seed, purpose, b as u64, 0);
+    for j in 0..k.min(count) {
+        let pick = j + s.below(idx.len() - j);
+        idx.swap(j, pick);
+    }
+    idx.truncate(k.min(count));
+    idx.into_iter()
 }
 
 #[cfg(test)]

@@ -286,6 +286,24 @@ fn a_lane_ahead_without_a_personal_space_is_refused() {
     );
 }
 
+/// A share of mirrored fish above 1 (or negative) is refused naming the file,
+/// the field, the value and the bound.
+#[test]
+fn a_mirrored_share_outside_zero_to_one_is_refused() {
+    for (v, says) in [
+        ("1.5", "above the limit of 1"),
+        ("-0.2", "below the limit of 0"),
+    ] {
+        let root = configs_with("mirrored", "rewards/thesis/pretrain.toml", |t| {
+            format!("{t}\n[extensions]\nmirrored_share = {v}\n")
+        });
+        assert_mentions(
+            &load_err(&root, "seabream_default"),
+            &["pretrain.toml", "extensions.mirrored_share", v, says],
+        );
+    }
+}
+
 /// What the policy sees must be the same in both phases of a profile: a
 /// `closing` heading in the pretraining alone is refused naming the file,
 /// the field and the other phase's file.

@@ -292,6 +292,19 @@ impl Frame {
         self.kind.fill(0);
     }
 
+    /// The left–right mirror image: the azimuth columns reversed (column `w`
+    /// and `AZ_CELLS − 1 − w` are centred at opposite azimuths), the rows as
+    /// they are. What a fish seeing the mirrored world would see; twice is
+    /// the identity.
+    pub fn mirror(&mut self) {
+        for row in self.dist.chunks_exact_mut(AZ_CELLS) {
+            row.reverse();
+        }
+        for row in self.kind.chunks_exact_mut(AZ_CELLS) {
+            row.reverse();
+        }
+    }
+
     /// Sensing range (m).
     pub fn range(&self) -> f32 {
         self.range
@@ -608,6 +621,35 @@ mod tests {
             }
         }
         v
+    }
+
+    /// A sphere 23° right and 13° up before a slanted wall, mirrored, is the
+    /// frame of the same scene mirrored (x → −x in the local frame: right is
+    /// −x): the sphere 23° left, the wall slanted the other way. Twice is the
+    /// identity.
+    #[test]
+    fn a_mirrored_frame_is_the_frame_of_the_mirrored_scene() {
+        let sensor = GridSensor::new();
+        let frame_of = |side: f32| {
+            let mut f = Frame::new(1.0);
+            let rel = direction(side * 23f32.to_radians(), 13f32.to_radians()) * 0.6;
+            f.add_sphere(&sensor, rel, 0.12, SeenKind::Fish);
+            let wall = Vec3::new(side * 0.4, 0.2, -1.0).normalize();
+            f.add_plane(&sensor, wall, 0.7, SeenKind::Net);
+            f
+        };
+        let floats = |f: &Frame| {
+            let mut out = vec![0.0; FRAME_LEN];
+            f.write(&mut out);
+            out
+        };
+        let (right, left) = (frame_of(1.0), frame_of(-1.0));
+        assert_ne!(floats(&right), floats(&left));
+        let mut mirrored = right.clone();
+        mirrored.mirror();
+        assert_eq!(floats(&mirrored), floats(&left));
+        mirrored.mirror();
+        assert_eq!(floats(&mirrored), floats(&right));
     }
 
     #[test]

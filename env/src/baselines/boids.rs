@@ -172,6 +172,11 @@ impl Policy for Boids {
     }
 
     /// The model steers once per decision (SPEC §4's `per_decision` reading).
+    /// It steers from the world, not from what a fish sees.
+    fn mirrors(&self) -> bool {
+        false
+    }
+
     fn action_timing(&self) -> Option<crate::config::ActionTiming> {
         Some(crate::config::ActionTiming::PerDecision)
     }

@@ -237,6 +237,16 @@ pub struct Extensions {
     /// where a neighbour is, not where it heads. It changes what the policy
     /// sees, so a profile sets it in both phases (checked). Not in the sources.
     pub heading_of: HeadingOf,
+    /// The share of each behaviour's fish that act as the mirror image of the
+    /// policy: they see their grid with the azimuth columns reversed and the
+    /// lateral component of `u` negated, and their yaw action is negated, so
+    /// a policy that prefers one turn makes them prefer the other. A shared
+    /// policy otherwise gives a whole school one handedness, which no
+    /// population of real fish has (lateralisation is individual). Exactly
+    /// `round(share · n)` fish of a behaviour, drawn from the seed, for their
+    /// whole life. Only policies that act on the observations are mirrored
+    /// (not the rule-based baselines). Not in the sources. 0 (default): none.
+    pub mirrored_share: f32,
 }
 
 impl Default for Extensions {
@@ -254,6 +264,7 @@ impl Default for Extensions {
             size_weighted: false,
             boundary_ends_episode: true,
             heading_of: HeadingOf::Front,
+            mirrored_share: 0.0,
         }
     }
 }
@@ -368,6 +379,13 @@ impl RewardWeights {
             x.personal_space_ahead_bl,
             BL,
             "BL",
+        )?;
+        check(
+            path,
+            "extensions.mirrored_share",
+            x.mirrored_share,
+            [0.0, 1.0],
+            "",
         )?;
         if x.personal_space_ahead_bl > 0.0 && x.personal_space_bl <= 0.0 {
             return Err(ConfigError::Invalid {
