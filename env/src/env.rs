@@ -67,6 +67,7 @@
 
 use crate::cage::Cage;
 use crate::chase;
+use crate::config::MirrorRedraw;
 use crate::physics::Physics;
 use crate::reward::{Outcome, Rewards};
 use crate::rng::{Purpose, Stream};
@@ -77,8 +78,8 @@ use crate::sun::SunPlace;
 use crate::traits::{self, FishParams, Traits};
 use crate::world::{Chase, World};
 use deepfoids_sensors::{
-    FRAME_BYTES, FRAME_LEN, Frame, FrameCell, GridFormat, GridSensor, GridsRef, Obstacle, STACK,
-    STACK_BYTES, STACKED_LEN, SpatialGrid, push_frame, reset_stack,
+    AZ_CELLS, FRAME_BYTES, FRAME_LEN, Frame, FrameCell, GridFormat, GridSensor, GridsRef, Obstacle,
+    STACK, STACK_BYTES, STACKED_LEN, SpatialGrid, push_frame, reset_stack,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -256,6 +257,9 @@ struct Scratch {
     changed: Vec<u32>,
     /// Which behaviours decide at this tick.
     deciding: Vec<bool>,
+    /// Fish whose handedness was drawn anew and changed at this decision
+    /// (`mirror_redraw = "decision"`): their older stacked frames are mirrored.
+    flipped: Vec<bool>,
 }
 
 /// What the world is made of, fixed while it runs (only the fish parameters
@@ -393,6 +397,7 @@ impl Env {
             outcome: vec![Outcome::default(); n],
             changed: Vec::with_capacity(2 * n + 2),
             deciding: vec![true; info.len()],
+            flipped: vec![false; n],
         };
         let mut env = Env {
             model: Model {
@@ -706,6 +711,9 @@ impl Env {
             self.scratch.deciding[b] =
                 mode != Mode::Decision || self.state.tick.is_multiple_of(info.period_ticks);
         }
+        if mode == Mode::Decision {
+            self.redraw_handedness();
+        }
         let t0 = std::time::Instant::now();
         let phys = &self.model.scene.physics;
         let m = &self.model;
@@ -739,6 +747,7 @@ impl Env {
                 sensing: &sensing,
                 rewards: &rewards,
                 first: r.start,
+                flipped: &self.scratch.flipped[r.clone()],
             };
             let outcome = &mut outcome[r];
             if batch.frames.is_empty() {
@@ -762,6 +771,34 @@ impl Env {
         fish.speed.copy_from_slice(&w.speed);
         self.output.tick = self.state.tick;
         self.output.time = w.time;
+    }
+
+    /// With `mirror_redraw = "decision"`, each deciding fish is mirrored anew
+    /// with probability `mirrored_share`, from `(seed, Handedness, fish, tick)`;
+    /// [`Scratch::flipped`] marks the fish whose handedness changed.
+    fn redraw_handedness(&mut self) {
+        let x = &self.model.scene.rewards.extensions;
+        if x.mirror_redraw != MirrorRedraw::Decision || x.mirrored_share <= 0.0 {
+            return;
+        }
+        let share = x.mirrored_share;
+        let (traits, flipped) = (&mut self.model.traits, &mut self.scratch.flipped);
+        for (b, info) in self.model.info.iter().enumerate() {
+            if !self.scratch.deciding[b] {
+                continue;
+            }
+            for i in info.range() {
+                let mut s = Stream::new(
+                    self.model.seed,
+                    Purpose::Handedness,
+                    i as u64,
+                    self.state.tick,
+                );
+                let now = s.uniform() < share;
+                flipped[i] = now != traits.mirrored[i];
+                traits.mirrored[i] = now;
+            }
+        }
     }
 
     /// The deciding behaviours' rewards, reward terms and episode ends, from
@@ -841,6 +878,8 @@ struct DecisionPass<'a> {
     rewards: &'a Rewards<'a>,
     /// The behaviour's first fish.
     first: usize,
+    /// The behaviour's fish whose handedness changed at this decision.
+    flipped: &'a [bool],
 }
 
 impl DecisionPass<'_> {
@@ -867,7 +906,16 @@ impl DecisionPass<'_> {
                         if out.terminated {
                             reset_stack(stack)
                         } else {
-                            push_frame(stack)
+                            push_frame(stack);
+                            let older = (STACK - 1) * T::FRAME;
+                            if self.flipped[a] {
+                                // Its older frames, seen with the other hand:
+                                // every frame's rows are runs of AZ_CELLS cells.
+                                for row in stack[..older].chunks_exact_mut(AZ_CELLS) {
+                                    row.reverse();
+                                }
+                            }
+                            &mut stack[older..]
                         }
                     }
                     Mode::Refresh => &mut stack[(STACK - 1) * T::FRAME..],

@@ -127,3 +127,44 @@ fn a_baseline_is_not_mirrored() {
     };
     assert_eq!(run(0.0), run(1.0));
 }
+
+/// `mirror_redraw = "decision"`: each fish draws its handedness anew at every
+/// decision (about half mirrored at 0.5), and a fish whose hand changed sees
+/// its older frames mirrored too, so its stack is one consistent view: the
+/// middle frame of a decision is the newest of the one before, reversed
+/// column by column exactly when the hand changed.
+#[test]
+fn a_hand_drawn_anew_each_decision_keeps_the_stack_consistent() {
+    use deepfoids_env::config::MirrorRedraw;
+    use deepfoids_sensors::FRAME_LEN;
+    let mut s = scene("coho_default", 12);
+    s.rewards.extensions.mirrored_share = 0.5;
+    s.rewards.extensions.mirror_redraw = MirrorRedraw::Decision;
+    let mut env = Env::new(s, 3);
+    env.reset();
+    let (mut flips, mut mirrored) = (0, 0);
+    let newest = |g: &[f32], a: usize| g[(a * 3 + 2) * FRAME_LEN..(a * 3 + 3) * FRAME_LEN].to_vec();
+    let middle = |g: &[f32], a: usize| g[(a * 3 + 1) * FRAME_LEN..(a * 3 + 2) * FRAME_LEN].to_vec();
+    for _ in 0..20 {
+        let before: Vec<bool> = (0..12).map(|i| env.is_mirrored(i)).collect();
+        let grids = env.output().behaviours[0].grids.clone();
+        env.step(&[vec![0.2; 36]]).unwrap();
+        let after = &env.output().behaviours[0];
+        for (a, &was_mirrored) in before.iter().enumerate() {
+            if after.terminated[a] {
+                continue;
+            }
+            let flipped = env.is_mirrored(a) != was_mirrored;
+            let was = newest(&grids, a);
+            let expected = if flipped { columns_reversed(&was) } else { was };
+            assert_eq!(middle(&after.grids, a), expected, "fish {a}");
+            flips += flipped as usize;
+            mirrored += env.is_mirrored(a) as usize;
+        }
+    }
+    assert!(
+        (60..180).contains(&mirrored),
+        "{mirrored} of 240 draws mirrored"
+    );
+    assert!(flips > 40, "{flips} changes of hand");
+}

@@ -37,8 +37,8 @@ pub use error::ConfigError;
 pub use range::Range;
 pub use read::{Overrides, read_toml};
 pub use rewards::{
-    ActionTiming, Contacts, Extensions, HeadingOf, NeighbourForm, NeighbourWeight, PersonalSpaceOf,
-    Phase, RewardTiming, RewardWeights, Timing,
+    ActionTiming, Contacts, Extensions, HeadingOf, MirrorRedraw, NeighbourForm, NeighbourWeight,
+    PersonalSpaceOf, Phase, RewardTiming, RewardWeights, Timing,
 };
 pub use scene::{
     CageConfig, Clock, GroupConfig, ObstacleConfig, PhysicsConfig, SceneFile, parse_clock,

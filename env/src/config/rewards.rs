@@ -155,6 +155,21 @@ pub enum PersonalSpaceOf {
     Pair,
 }
 
+/// How long a fish keeps the handedness `mirrored_share` draws.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MirrorRedraw {
+    /// For its life: exactly `round(share · n)` fish of a behaviour, drawn
+    /// when the env is built (default).
+    #[default]
+    Life,
+    /// Anew at every decision, each fish mirrored with probability `share`
+    /// (its older stacked frames mirrored to match): a policy's turning bias
+    /// then acts either way at random, so what the school does comes from
+    /// what the fish see, as under a policy that is its own mirror image.
+    Decision,
+}
+
 /// Whose heading the vector observation's `u` gives (SPEC §5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
@@ -247,6 +262,9 @@ pub struct Extensions {
     /// whole life. Only policies that act on the observations are mirrored
     /// (not the rule-based baselines). Not in the sources. 0 (default): none.
     pub mirrored_share: f32,
+    /// Whether a fish keeps its handedness for `life` (default) or draws it
+    /// anew at every `decision` ([`MirrorRedraw`]).
+    pub mirror_redraw: MirrorRedraw,
 }
 
 impl Default for Extensions {
@@ -265,6 +283,7 @@ impl Default for Extensions {
             boundary_ends_episode: true,
             heading_of: HeadingOf::Front,
             mirrored_share: 0.0,
+            mirror_redraw: MirrorRedraw::Life,
         }
     }
 }
