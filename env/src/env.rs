@@ -78,8 +78,8 @@ use crate::sun::SunPlace;
 use crate::traits::{self, FishParams, Traits};
 use crate::world::{Chase, World};
 use deepfoids_sensors::{
-    AZ_CELLS, FRAME_BYTES, FRAME_LEN, Frame, FrameCell, GridFormat, GridSensor, GridsRef, Obstacle,
-    STACK, STACK_BYTES, STACKED_LEN, SpatialGrid, push_frame, reset_stack,
+    FRAME_BYTES, FRAME_LEN, Frame, FrameCell, GridFormat, GridSensor, GridsRef, Obstacle, STACK,
+    STACK_BYTES, STACKED_LEN, SpatialGrid, mirror_columns, push_frame, reset_stack,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -606,8 +606,9 @@ impl Env {
 
     /// Whether the mirrored fish (the profile's `mirrored_share`) see and
     /// steer mirrored from the next observation on; on unless a rule-based
-    /// baseline drives ([`crate::Policy::mirrors`]). Whether each fish is
-    /// mirrored is drawn from the seed when the env is built.
+    /// baseline drives ([`crate::Policy::mirrors`]). Which fish are mirrored
+    /// is drawn from the seed when the env is built, and anew at each decision
+    /// with `mirror_redraw = "decision"` (not while mirroring is off).
     pub fn set_mirroring(&mut self, on: bool) {
         self.model.traits.mirroring = on;
     }
@@ -778,7 +779,8 @@ impl Env {
     /// [`Scratch::flipped`] marks the fish whose handedness changed.
     fn redraw_handedness(&mut self) {
         let x = &self.model.scene.rewards.extensions;
-        if x.mirror_redraw != MirrorRedraw::Decision || x.mirrored_share <= 0.0 {
+        let off = !self.model.traits.mirroring || x.mirrored_share <= 0.0;
+        if off || x.mirror_redraw != MirrorRedraw::Decision {
             return;
         }
         let share = x.mirrored_share;
@@ -909,11 +911,8 @@ impl DecisionPass<'_> {
                             push_frame(stack);
                             let older = (STACK - 1) * T::FRAME;
                             if self.flipped[a] {
-                                // Its older frames, seen with the other hand:
-                                // every frame's rows are runs of AZ_CELLS cells.
-                                for row in stack[..older].chunks_exact_mut(AZ_CELLS) {
-                                    row.reverse();
-                                }
+                                // Its older frames, seen with the other hand.
+                                mirror_columns(&mut stack[..older]);
                             }
                             &mut stack[older..]
                         }

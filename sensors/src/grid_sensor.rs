@@ -145,6 +145,16 @@ impl GridSensor {
     }
 }
 
+/// Reverse the azimuth columns of grids laid out as rows of [`AZ_CELLS`]
+/// cells (a frame's channels, a stack of frames, as floats or as bytes): the
+/// left–right mirror image of every row.
+pub fn mirror_columns<T>(cells: &mut [T]) {
+    debug_assert_eq!(cells.len() % AZ_CELLS, 0);
+    for row in cells.chunks_exact_mut(AZ_CELLS) {
+        row.reverse();
+    }
+}
+
 /// Local unit direction for azimuth `az` (positive right) and elevation `el` (radians).
 #[inline]
 pub fn direction(az: f32, el: f32) -> Vec3 {
@@ -297,12 +307,8 @@ impl Frame {
     /// they are. What a fish seeing the mirrored world would see; twice is
     /// the identity.
     pub fn mirror(&mut self) {
-        for row in self.dist.chunks_exact_mut(AZ_CELLS) {
-            row.reverse();
-        }
-        for row in self.kind.chunks_exact_mut(AZ_CELLS) {
-            row.reverse();
-        }
+        mirror_columns(&mut self.dist);
+        mirror_columns(&mut self.kind);
     }
 
     /// Sensing range (m).

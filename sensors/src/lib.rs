@@ -15,7 +15,8 @@ pub mod spatial;
 pub use frames::{FRAME_BYTES, FrameCell, GridFormat, GridsRef, STACK_BYTES};
 pub use geometry::{Boundary, BoundaryKind, Obstacle, Plane};
 pub use grid_sensor::{
-    Channel, Frame, GridSensor, SPHERE_BATCH, SeenKind, SphereBatch, push_frame, reset_stack,
+    Channel, Frame, GridSensor, SPHERE_BATCH, SeenKind, SphereBatch, mirror_columns, push_frame,
+    reset_stack,
 };
 pub use layout::{
     AZ_CELLS, CELLS, CHANNELS, EL_CELLS, FRAME_LEN, STACK, STACKED_CHANNELS, STACKED_LEN,

@@ -259,7 +259,7 @@ pub struct Extensions {
     /// policy otherwise gives a whole school one handedness, which no
     /// population of real fish has (lateralisation is individual). Exactly
     /// `round(share · n)` fish of a behaviour, drawn from the seed, for their
-    /// whole life. Only policies that act on the observations are mirrored
+    /// whole life unless `mirror_redraw` says otherwise. Only policies that act on the observations are mirrored
     /// (not the rule-based baselines). Not in the sources. 0 (default): none.
     pub mirrored_share: f32,
     /// Whether a fish keeps its handedness for `life` (default) or draws it
