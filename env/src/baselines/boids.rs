@@ -171,12 +171,12 @@ impl Policy for Boids {
         "boids".into()
     }
 
-    /// The model steers once per decision (SPEC §4's `per_decision` reading).
-    /// It steers from the world, not from what a fish sees.
+    /// It steers from the world, not from what a fish sees: nothing to mirror.
     fn mirrors(&self) -> bool {
         false
     }
 
+    /// The model steers once per decision (SPEC §4's `per_decision` reading).
     fn action_timing(&self) -> Option<crate::config::ActionTiming> {
         Some(crate::config::ActionTiming::PerDecision)
     }
