@@ -9,11 +9,16 @@
 //! * Nearest-neighbour distance in body lengths (of the fish measuring it),
 //!   collisions per fish-hour, speed in BL/s, depth distribution per behaviour,
 //!   cumulative reward per term.
+//! * Turning about the vertical ([`Turning`]): each fish's mean rate in deg/s,
+//!   positive clockwise seen from above (from +x towards +z, y up), and the
+//!   share of fish turning clockwise. A lone fish of a lateralised policy circles one
+//!   way; so does every fish of a school that shares the policy (issue 21).
 
 use crate::env::{N_TERMS, StepOutput, TERM_NAMES};
 use deepfoids_sensors::SpatialGrid;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
+use std::f64::consts::{PI, TAU};
 
 /// Polarisation `P` and milling `M` (Eq. A.3) of the fish `idx` (all if `None`).
 pub fn order_parameters(position: &[Vec3], heading: &[Vec3], idx: Option<&[usize]>) -> (f32, f32) {
@@ -132,6 +137,93 @@ pub fn quantile(values: &[f32], q: f32) -> f32 {
     v[lo] + (v[hi] - v[lo]) * (pos - lo as f32)
 }
 
+/// Each fish's turning about the vertical, summed from one sample to the
+/// next: how far its heading's bearing (the angle of its horizontal part,
+/// from +x towards +z) moved, wrapped to (−180°, 180°], and over what time.
+/// An interval does not count where the fish respawned since the last sample
+/// ([`Turning::restart`]) or where either heading is within 5.7° of vertical
+/// (horizontal part below 0.1), whose bearing means nothing. (The recorder
+/// learns of a respawn at the fish's next decision: where a behaviour decides
+/// less often than every tick, the jump itself may count once, as a turn of
+/// at most 180°.)
+#[derive(Clone, Debug, Default)]
+pub struct Turning {
+    /// Bearing at the last sample (rad); NaN where the next interval must not count.
+    last: Vec<f64>,
+    last_t: f64,
+    /// Turned (rad) and time (s) summed over the intervals that count.
+    turned: Vec<f64>,
+    time: Vec<f64>,
+}
+
+impl Turning {
+    /// Horizontal part of a unit heading below which its bearing is not used.
+    pub const MIN_HORIZONTAL: f32 = 0.1;
+
+    pub fn new(fish: usize) -> Self {
+        Self {
+            last: vec![f64::NAN; fish],
+            last_t: f64::NAN,
+            turned: vec![0.0; fish],
+            time: vec![0.0; fish],
+        }
+    }
+
+    /// Fish `i` was put somewhere else (a respawn): its next interval does not count.
+    pub fn restart(&mut self, i: usize) {
+        self.last[i] = f64::NAN;
+    }
+
+    /// Every fish's unit heading at simulated time `t` (s).
+    pub fn sample(&mut self, t: f64, heading: &[Vec3]) {
+        let dt = t - self.last_t;
+        for (i, h) in heading.iter().enumerate() {
+            let bearing = if h.x.hypot(h.z) >= Self::MIN_HORIZONTAL {
+                f64::from(h.z).atan2(f64::from(h.x))
+            } else {
+                f64::NAN
+            };
+            let d = bearing - self.last[i];
+            if d.is_finite() && dt > 0.0 {
+                self.turned[i] += (d + PI).rem_euclid(TAU) - PI;
+                self.time[i] += dt;
+            }
+            self.last[i] = bearing;
+        }
+        self.last_t = t;
+    }
+
+    /// Each fish's mean turning rate (deg/s, + clockwise seen from above);
+    /// NaN for a fish with no interval that counted.
+    pub fn rates(&self) -> Vec<f32> {
+        self.turned
+            .iter()
+            .zip(&self.time)
+            .map(|(a, t)| {
+                if *t > 0.0 {
+                    (a.to_degrees() / t) as f32
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect()
+    }
+
+    /// The mean of the finite `rates` and the share of them above 0 (NaN, NaN
+    /// if none is finite).
+    pub fn stats(rates: &[f32]) -> (f32, f32) {
+        let v: Vec<f32> = rates.iter().copied().filter(|r| r.is_finite()).collect();
+        if v.is_empty() {
+            return (f32::NAN, f32::NAN);
+        }
+        let n = v.len() as f32;
+        (
+            v.iter().sum::<f32>() / n,
+            v.iter().filter(|r| **r > 0.0).count() as f32 / n,
+        )
+    }
+}
+
 /// One sample of the school, taken at a tick.
 #[derive(Clone, Debug, Serialize)]
 pub struct Sample {
@@ -175,6 +267,17 @@ pub struct BehaviourSummary {
     pub depth_edges: Vec<f32>,
     pub depth_share: Vec<f32>,
     pub mean_depth: f32,
+    /// The mean of the fish's turning rates about the vertical (deg/s, +
+    /// clockwise seen from above; [`Turning`]) and the share of fish turning
+    /// clockwise. Absent (NaN) in files written before they were measured.
+    #[serde(default = "nan")]
+    pub turn_rate_deg_s: f32,
+    #[serde(default = "nan")]
+    pub clockwise_share: f32,
+}
+
+fn nan() -> f32 {
+    f32::NAN
 }
 
 /// Everything `eval` reports, for the whole school.
@@ -197,6 +300,12 @@ pub struct Summary {
     pub neighbour_collisions_per_fish_hour: f64,
     pub mean_speed_bl: f32,
     pub reward_per_decision: f64,
+    /// As [`BehaviourSummary::turn_rate_deg_s`] and
+    /// [`BehaviourSummary::clockwise_share`], over every fish.
+    #[serde(default = "nan")]
+    pub turn_rate_deg_s: f32,
+    #[serde(default = "nan")]
+    pub clockwise_share: f32,
     pub behaviours: Vec<BehaviourSummary>,
 }
 
@@ -227,6 +336,7 @@ pub struct Recorder {
     acc: Vec<Acc>,
     pending_boundary: u64,
     pending_neighbour: u64,
+    turning: Turning,
     pub samples: Vec<Sample>,
 }
 
@@ -253,6 +363,7 @@ impl Recorder {
             ],
             pending_boundary: 0,
             pending_neighbour: 0,
+            turning: Turning::new(env.world().len()),
             samples: Vec::new(),
         }
     }
@@ -270,6 +381,9 @@ impl Recorder {
                 for (t, v) in batch.terms[i].iter().enumerate() {
                     a.terms[t] += *v as f64;
                 }
+                if batch.terminated[i] {
+                    self.turning.restart(batch.first + i);
+                }
                 let bc = batch.crossed[i] as u64;
                 a.boundary += bc;
                 a.neighbour += batch.new_collisions[i] as u64;
@@ -282,6 +396,7 @@ impl Recorder {
     /// Take a sample of the school's state now.
     pub fn sample(&mut self, out: &StepOutput) {
         let f = &out.fish;
+        self.turning.sample(out.time, &f.heading);
         let (p, m) = order_parameters(&f.position, &f.heading, None);
         let per_behaviour: Vec<(f32, f32)> = self
             .ranges
@@ -371,11 +486,14 @@ impl Recorder {
                 v.iter().sum::<f32>() / v.len() as f32
             }
         };
+        let rates = self.turning.rates();
         let behaviours: Vec<BehaviourSummary> = self
             .acc
             .iter()
             .enumerate()
             .map(|(b, a)| {
+                let (turn_rate_deg_s, clockwise_share) =
+                    Turning::stats(&rates[self.ranges[b].clone()]);
                 let dec = a.decisions.max(1) as f64;
                 let hours = self.counts[b] as f64 * seconds / 3600.0;
                 let total: u64 = a.depth.iter().sum();
@@ -404,10 +522,13 @@ impl Recorder {
                         .map(|&c| c as f32 / total.max(1) as f32)
                         .collect(),
                     mean_depth: (a.depth_sum / a.speed_n.max(1) as f64) as f32,
+                    turn_rate_deg_s,
+                    clockwise_share,
                 }
             })
             .collect();
         let decisions: u64 = self.acc.iter().map(|a| a.decisions).sum();
+        let (turn_rate_deg_s, clockwise_share) = Turning::stats(&rates);
         Summary {
             seconds,
             samples: s.len(),
@@ -429,6 +550,8 @@ impl Recorder {
             mean_speed_bl: mean(&|x| x.speed_bl),
             reward_per_decision: self.acc.iter().map(|a| a.reward).sum::<f64>()
                 / decisions.max(1) as f64,
+            turn_rate_deg_s,
+            clockwise_share,
             behaviours,
         }
     }
@@ -460,6 +583,56 @@ mod tests {
         assert!((p - 1.0).abs() < 1e-6, "{p}");
         assert!(m < 1e-5, "{m}");
         assert_eq!(SchoolState::classify(p, m), SchoolState::Polarised);
+    }
+
+    /// A unit heading at bearing `deg` (from +x towards +z), pitched by `pitch` rad.
+    fn bearing(deg: f32, pitch: f32) -> Vec3 {
+        let (b, c) = (deg.to_radians(), pitch.cos());
+        Vec3::new(c * b.cos(), pitch.sin(), c * b.sin())
+    }
+
+    /// Sampled every 0.2 s for 10 s: fish 0 turns 6° clockwise (from +x towards
+    /// +z) per sample, 300° in all, across the ±180° seam: 30°/s; fish 1 turns
+    /// 4° the other way per sample, pitched 30°: −20°/s; fish 2 points straight
+    /// up: no bearing, no rate. Mean of the two rates 5°/s, one of two clockwise.
+    #[test]
+    fn turning_rates_are_the_bearing_turned_over_the_time() {
+        let mut turning = Turning::new(3);
+        for k in 0..=50 {
+            let heading = [
+                bearing(100.0 + 6.0 * k as f32, 0.0),
+                bearing(-4.0 * k as f32, std::f32::consts::FRAC_PI_6),
+                Vec3::Y,
+            ];
+            turning.sample(0.2 * k as f64, &heading);
+        }
+        let rates = turning.rates();
+        assert!((rates[0] - 30.0).abs() < 1e-3, "{rates:?}");
+        assert!((rates[1] + 20.0).abs() < 1e-3, "{rates:?}");
+        assert!(rates[2].is_nan());
+        let (mean, clockwise) = Turning::stats(&rates);
+        assert!(
+            (mean - 5.0).abs() < 1e-3 && clockwise == 0.5,
+            "{mean} {clockwise}"
+        );
+    }
+
+    /// A respawn's jump is not a turn: fish 0 turns 2° per 0.2 s, is moved to
+    /// a bearing 150° away after the 5th sample, then turns on. The interval
+    /// with the jump is left out: 9 intervals of 2° in 1.8 s, 10°/s.
+    #[test]
+    fn a_respawn_does_not_count_as_a_turn() {
+        let mut turning = Turning::new(1);
+        for k in 0..=10 {
+            let jump = if k > 5 { 150.0 } else { 0.0 };
+            if k == 6 {
+                turning.restart(0);
+            }
+            turning.sample(0.2 * k as f64, &[bearing(2.0 * k as f32 + jump, 0.0)]);
+        }
+        let rate = turning.rates()[0];
+        assert!((rate - 10.0).abs() < 1e-3, "{rate}");
+        assert!(Turning::stats(&[f32::NAN]).0.is_nan());
     }
 
     /// Fish on a ring heading tangentially: M = 1, P ≈ 0.

@@ -229,11 +229,22 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
         s.neighbour_collisions_per_fish_hour,
         s.reward_per_decision
     );
+    println!(
+        "turning {:+.1}°/s (+ clockwise seen from above) · {:.0} % of fish turn clockwise",
+        s.turn_rate_deg_s,
+        100.0 * s.clockwise_share
+    );
     if s.behaviours.len() > 1 {
         for b in &s.behaviours {
             println!(
-                "  {:<20} P {:.3} M {:.3} depth {:.2} m speed {:.2} BL/s reward/decision {:.3}",
-                b.name, b.p_mean, b.m_mean, b.mean_depth, b.mean_speed_bl, b.reward_per_decision
+                "  {:<20} P {:.3} M {:.3} depth {:.2} m speed {:.2} BL/s turning {:+.1}°/s reward/decision {:.3}",
+                b.name,
+                b.p_mean,
+                b.m_mean,
+                b.mean_depth,
+                b.mean_speed_bl,
+                b.turn_rate_deg_s,
+                b.reward_per_decision
             );
         }
     }
