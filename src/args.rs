@@ -3,9 +3,10 @@
 
 use clap::Args;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
-use deepfoids_env::Phase;
+use deepfoids_env::{ConfigDirs, Phase, Scene};
 use deepfoids_experiments::PolicyOptions;
 use deepfoids_experiments::evaluate::RunArgs;
+use deepfoids_experiments::policies::load_scene_with;
 use deepfoids_experiments::training::TrainOptions;
 use deepfoids_learn::{Algorithm, Backend};
 use std::fmt::Display;
@@ -25,6 +26,26 @@ pub struct SceneArgs {
     /// Reward weights of this phase
     #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
     pub phase: Phase,
+    /// Swim this many fish instead of the scene's count (a scene of one group
+    /// only): `--fish-count 1` shows a lone fish's habits, other counts another density
+    #[arg(long, value_name = "N", value_parser = whole::<usize>)]
+    pub fish_count: Option<usize>,
+}
+
+impl SceneArgs {
+    /// The scene with the reward weights of `--phase`, resized by `--fish-count`.
+    pub fn load(&self, dirs: &ConfigDirs) -> anyhow::Result<Scene> {
+        load_scene_with(dirs, &self.scene, self.phase, self.fish_count)
+    }
+
+    /// The scene's part of a default output folder's name: its id, then
+    /// `-n<N>` when `--fish-count` resized it.
+    pub fn label(&self, id: &str) -> String {
+        match self.fish_count {
+            Some(n) => format!("{id}-n{n}"),
+            None => id.to_string(),
+        }
+    }
 }
 
 /// Who acts, and how a trained policy is loaded and run.
@@ -136,6 +157,7 @@ pub fn rerun(
         stochastic: !opts.deterministic,
         warmup,
         seconds,
+        fish: scene.fish_count,
     }
 }
 
@@ -149,6 +171,7 @@ pub fn from_rerun(run: &RunArgs) -> anyhow::Result<(SceneArgs, PolicyArgs)> {
                 .phase
                 .parse()
                 .map_err(|e| anyhow::anyhow!("phase `{}`: {e}", run.phase))?,
+            fish_count: run.fish,
         },
         PolicyArgs {
             policy: Some(run.policy.clone()),

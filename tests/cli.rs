@@ -193,6 +193,62 @@ fn eval_writes_metrics_summary_and_plots() {
     }
 }
 
+/// `--fish-count` resizes a scene of one group: a lone seabream in `seabream_50`'s
+/// cage, recorded in summary.json so that `replay --from` simulates the same
+/// lone fish again (it checks P and M against metrics.csv); its turning is
+/// measured. A scene of several groups, or 0 fish, is refused by name.
+#[test]
+fn fish_count_resizes_a_scene_of_one_group() {
+    let out = temp("eval-lone");
+    let o = cli_ok(&format!(
+        "eval --scene seabream_50 --fish-count 1 --policy foids --seconds 3 --seed 4 --out {}",
+        out.display()
+    ));
+    assert!(text(&o).contains("turning "), "{}", text(&o));
+    let summary = json(&out.join("summary.json"));
+    assert_eq!(summary["summary"]["fish"], 1);
+    assert_eq!(summary["rerun"]["fish"], 1);
+    let turn = summary["summary"]["turn_rate_deg_s"].as_f64().unwrap();
+    assert!(turn.is_finite() && turn.abs() < 180.0, "{turn}");
+    let share = summary["summary"]["clockwise_share"].as_f64().unwrap();
+    assert!(
+        share == 0.0 || share == 1.0,
+        "one fish turns one way: {share}"
+    );
+    let page = out.join("replay.html");
+    cli_ok(&format!(
+        "replay --from {} --out {}",
+        out.display(),
+        page.display()
+    ));
+    // Without --fish-count the summary keeps the scene's 50 and no `fish` key.
+    let full = temp("eval-fifty");
+    cli_ok(&format!(
+        "eval --scene seabream_50 --policy foids --seconds 0.5 --out {}",
+        full.display()
+    ));
+    let summary = json(&full.join("summary.json"));
+    assert_eq!(summary["summary"]["fish"], 50);
+    assert!(summary["rerun"].get("fish").is_none(), "{summary}");
+
+    let refused = temp("eval-refused");
+    cli_fails(
+        &format!(
+            "eval --scene three_species --fish-count 10 --seconds 1 --out {}",
+            refused.display()
+        ),
+        "three_species.toml: field `group`: --fish-count resizes a scene of one [[group]] of fish; this one has 3 groups",
+    );
+    cli_fails(
+        &format!(
+            "simulate --scene seabream_50 --fish-count 0 --seconds 1 --out {}",
+            refused.display()
+        ),
+        "--fish-count must be 1 to 200000, got 0",
+    );
+    assert!(!refused.exists(), "nothing is written");
+}
+
 #[test]
 fn simulate_takes_the_baselines_too() {
     let out = temp("simulate-foids");

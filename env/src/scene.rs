@@ -211,6 +211,41 @@ impl Scene {
         Ok(scene)
     }
 
+    /// This scene with `fish` fish instead of its own count (`--fish-count`): a lone
+    /// fish, or the same cage at another density. Only a scene of one group of
+    /// fish can be resized, since how many of each group there should be is
+    /// not for a single number to say; the count must be 1 to
+    /// [`limits::MAX_FISH`]. The error names the scene file.
+    pub fn with_fish(mut self, fish: usize) -> Result<Self, ConfigError> {
+        let groups: usize = self.behaviours.iter().map(|b| b.body_scales.len()).sum();
+        if groups != 1 {
+            return Err(ConfigError::invalid(
+                &self.source,
+                "group",
+                format!(
+                    "--fish-count resizes a scene of one [[group]] of fish; this one has {groups} groups \
+                     ({}), so write a scene file with the counts you want",
+                    self.behaviours
+                        .iter()
+                        .map(|b| format!("{} {}", b.count, b.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        if fish == 0 || fish > limits::MAX_FISH {
+            return Err(ConfigError::invalid(
+                &self.source,
+                "group[0].count",
+                format!("--fish-count must be 1 to {}, got {fish}", limits::MAX_FISH),
+            ));
+        }
+        let b = &mut self.behaviours[0];
+        b.count = fish;
+        b.body_scales[0].0 = fish;
+        Ok(self)
+    }
+
     fn validate(&self, path: &Path) -> Result<(), ConfigError> {
         let p = &self.physics;
         let positive = |v: f32, field: &str| crate::config::positive_in(path, field, v);

@@ -120,6 +120,10 @@ pub struct RunArgs {
     pub warmup: f64,
     /// Simulated seconds.
     pub seconds: f64,
+    /// `--fish-count`: the scene's one group resized to this many fish (absent: the
+    /// scene's own count).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fish: Option<usize>,
 }
 
 /// Write `metrics.csv`, `summary.json`, `pm.png`, `depth.png` and `trajectories.png` to `dir`.

@@ -24,7 +24,21 @@ pub struct PolicyOptions {
 /// An environment of it must fit into the machine's memory
 /// (`deepfoids_env::memory`), checked before anything is allocated.
 pub fn load_scene(dirs: &ConfigDirs, id: &str, phase: Phase) -> Result<Scene> {
-    let scene = Scene::load(dirs, id, phase)?;
+    load_scene_with(dirs, id, phase, None)
+}
+
+/// [`load_scene`] with `fish` fish instead of the scene's own count when given
+/// (`--fish-count`; [`Scene::with_fish`]: a scene of one group only).
+pub fn load_scene_with(
+    dirs: &ConfigDirs,
+    id: &str,
+    phase: Phase,
+    fish: Option<usize>,
+) -> Result<Scene> {
+    let mut scene = Scene::load(dirs, id, phase)?;
+    if let Some(n) = fish {
+        scene = scene.with_fish(n)?;
+    }
     deepfoids_env::memory::check_env(&scene)?;
     Ok(scene)
 }

@@ -282,6 +282,7 @@ pub fn evaluate_run(scene: Scene, run_dir: &Path, opts: &TrainOptions) -> Result
         stochastic: true,
         warmup: 0.0,
         seconds: opts.eval_seconds,
+        fish: None,
     };
     let mut env = Env::new(scene, env_seed);
     let mut policy = load_trained(run_dir, None, &env, false, env_seed)?;

@@ -7,7 +7,7 @@ use deepfoids_env::limits::MAX_FPS;
 use deepfoids_env::{ConfigDirs, Env, GridFormat};
 use deepfoids_experiments::evaluate::{EvalMeta, print_table, write_outputs};
 use deepfoids_experiments::replays::evaluate_recorded;
-use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
+use deepfoids_experiments::{bounds, lock_dir, make_policy};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -22,7 +22,7 @@ pub struct EvalArgs {
     /// Simulated seconds run before recording (the school settles from its random start)
     #[arg(long, default_value_t = 0.0)]
     pub warmup: f64,
-    /// Output folder [default: runs/eval-<scene>-<policy>-s<seed>]
+    /// Output folder [default: runs/eval-<scene>[-n<fish>]-<policy>-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Also write replay.html (see `deepfoids replay`) next to the plots
@@ -39,13 +39,13 @@ pub fn run(dirs: &ConfigDirs, args: &EvalArgs) -> Result<()> {
     bounds::warmup("--warmup", args.warmup)?;
     bounds::positive_at_most("--replay-fps", args.replay_fps, MAX_FPS, "frames/s")?;
     let sa = &args.scene;
-    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
+    let scene = sa.load(dirs)?;
     let mut env = Env::with_grid_format(scene, sa.seed, GridFormat::Bytes);
     let mut policy = make_policy(dirs, &policy_name, sa.seed, &env, &policy_args.options())?;
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "runs/eval-{}-{}-s{}",
-            env.scene().id,
+            sa.label(&env.scene().id),
             policy.name(),
             sa.seed
         ))

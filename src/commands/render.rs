@@ -130,7 +130,7 @@ pub fn run(dirs: &ConfigDirs, args: &RenderArgs) -> Result<()> {
     }
     count_within("--water-tries", args.water_tries as u64, [1, 100], "draws")?;
     let spec = DatasetSpec {
-        scene: load_scene(dirs, &args.scene.scene, args.scene.phase)?,
+        scene: args.scene.load(dirs)?,
         seed: args.scene.seed,
         policy: policy_name.clone(),
         policy_options: policy_args.options(),

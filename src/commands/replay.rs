@@ -25,7 +25,7 @@ use deepfoids_experiments::replays::{
     MIN_CSV_ROW, PAGE_BYTES_PER_FISH_FRAME, bytes, check_pm, check_recording, describe,
     evaluate_recorded, info, read_json, read_pm, warn_if_large, write_page,
 };
-use deepfoids_experiments::{bounds, load_scene, make_policy};
+use deepfoids_experiments::{bounds, make_policy};
 use deepfoids_replay::{GifView, check_gif, write_gif};
 use deepfoids_replay::{Recording, from_trajectories};
 use std::path::{Path, PathBuf};
@@ -42,6 +42,10 @@ pub struct ReplayArgs {
     /// Reward weights of this phase (the reward terms shown)
     #[arg(long, default_value = "pretrain", value_parser = parse_phase)]
     pub phase: Phase,
+    /// Swim this many fish instead of the scene's count (a scene of one group only;
+    /// with --from: only for a simulate folder without simulate.json)
+    #[arg(long, value_name = "N", value_parser = whole::<usize>)]
+    pub fish_count: Option<usize>,
     #[command(flatten)]
     pub policy_args: PolicyArgs,
     /// Simulated seconds
@@ -97,6 +101,7 @@ pub fn run(dirs: &ConfigDirs, args: &ReplayArgs) -> Result<()> {
                 scene: scene.clone(),
                 seed: args.seed.unwrap_or(0),
                 phase: args.phase,
+                fish_count: args.fish_count,
             };
             let run = rerun(&sa, &policy_name, &policy_args, 0.0, args.seconds);
             simulate(dirs, &run, args.fps, "simulated by deepfoids replay")?.0
@@ -125,7 +130,7 @@ fn simulate(
     source: &str,
 ) -> Result<(Recording, Evaluation)> {
     let (sa, opts) = from_rerun(run)?;
-    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
+    let scene = sa.load(dirs)?;
     let mut env = Env::with_grid_format(scene, sa.seed, GridFormat::Bytes);
     check_recording(&env, run.seconds, fps)?;
     let mut policy = make_policy(dirs, &run.policy, sa.seed, &env, &opts.options())?;
@@ -169,9 +174,9 @@ fn from_simulate(
     let meta_path = dir.join("simulate.json");
     let (sa, policy) = if meta_path.is_file() {
         let run: RunArgs = read_json(&meta_path)?;
-        if args.scene.is_some() || args.seed.is_some() {
+        if args.scene.is_some() || args.seed.is_some() || args.fish_count.is_some() {
             bail!(
-                "--scene and --seed come from {} here; drop them",
+                "--scene, --seed and --fish-count come from {} here; drop them",
                 meta_path.display()
             );
         }
@@ -188,10 +193,11 @@ fn from_simulate(
             scene: scene.clone(),
             seed: args.seed.unwrap_or(0),
             phase: args.phase,
+            fish_count: args.fish_count,
         };
         (sa, "unknown policy".to_string())
     };
-    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
+    let scene = sa.load(dirs)?;
     let env = Env::new(scene, sa.seed);
     let csv_bytes = std::fs::metadata(csv)
         .with_context(|| format!("cannot read {}", csv.display()))?

@@ -8,8 +8,8 @@ use clap::Args;
 use deepfoids_env::limits::MAX_TICKS;
 use deepfoids_env::policy::action_buffers;
 use deepfoids_env::{Chase, ConfigDirs, Env, Policy, RandomPolicy};
+use deepfoids_experiments::bounds;
 use deepfoids_experiments::sensor_view::draw;
-use deepfoids_experiments::{bounds, load_scene};
 use deepfoids_sensors::STACKED_LEN;
 use std::path::PathBuf;
 
@@ -31,7 +31,7 @@ pub struct SensorViewArgs {
 pub fn run(dirs: &ConfigDirs, args: &SensorViewArgs) -> Result<()> {
     bounds::count_within("--step", args.step, [0, MAX_TICKS], "ticks")?;
     let sa = &args.scene;
-    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
+    let scene = sa.load(dirs)?;
     let mut env = Env::new(scene, sa.seed);
     let n = env.world().len();
     if args.fish >= n {

@@ -8,7 +8,7 @@ use clap::Args;
 use deepfoids_env::reward::TERM_SYMBOLS;
 use deepfoids_env::{ConfigDirs, Env, GridFormat};
 use deepfoids_experiments::simulate::{Simulated, simulate_to_csv};
-use deepfoids_experiments::{bounds, load_scene, lock_dir, make_policy};
+use deepfoids_experiments::{bounds, lock_dir, make_policy};
 use deepfoids_io::write_atomic;
 use std::path::PathBuf;
 
@@ -21,7 +21,7 @@ pub struct SimulateArgs {
     /// Simulated seconds
     #[arg(long, default_value_t = 60.0)]
     pub seconds: f64,
-    /// Output folder [default: runs/simulate-<scene>-s<seed>]
+    /// Output folder [default: runs/simulate-<scene>[-n<fish>]-s<seed>]
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 }
@@ -30,11 +30,14 @@ pub fn run(dirs: &ConfigDirs, args: &SimulateArgs) -> Result<()> {
     let (policy_name, policy_args) = args.policy_args.resolve("random")?;
     bounds::seconds("--seconds", args.seconds)?;
     let sa = &args.scene;
-    let scene = load_scene(dirs, &sa.scene, sa.phase)?;
-    let out_dir = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("runs/simulate-{}-s{}", scene.id, sa.seed)));
+    let scene = sa.load(dirs)?;
+    let out_dir = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from(format!(
+            "runs/simulate-{}-s{}",
+            sa.label(&scene.id),
+            sa.seed
+        ))
+    });
     bounds::out_dir("--out", &out_dir)?;
     let _lock = lock_dir(&out_dir)?;
     let mut env = Env::with_grid_format(scene, sa.seed, GridFormat::Bytes);

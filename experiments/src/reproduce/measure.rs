@@ -348,6 +348,7 @@ pub fn measure_one(
             stochastic: !profile.deterministic,
             warmup: profile.warmup,
             seconds: profile.seconds,
+            fish: None,
         },
     };
     let summary = write_outputs(&eval_dir, &env, &eval, &meta)?;
