@@ -204,7 +204,11 @@ fn fish_count_resizes_a_scene_of_one_group() {
         "eval --scene seabream_50 --fish-count 1 --policy foids --seconds 3 --seed 4 --out {}",
         out.display()
     ));
-    assert!(text(&o).contains("turning "), "{}", text(&o));
+    assert!(
+        text(&o).contains("nearest neighbour none (a lone fish)") && text(&o).contains("turning "),
+        "{}",
+        text(&o)
+    );
     let summary = json(&out.join("summary.json"));
     assert_eq!(summary["summary"]["fish"], 1);
     assert_eq!(summary["rerun"]["fish"], 1);

@@ -225,9 +225,12 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
         state_shares(s)
     );
     println!(
-        "nearest neighbour {:.2} BL (5th pct {:.2}) · speed {:.2} BL/s · collisions per fish-hour: boundary {:.1}, neighbour {:.1} · reward/decision {:.3}",
-        s.nn_mean_bl,
-        s.nn_p05_bl,
+        "nearest neighbour {} · speed {:.2} BL/s · collisions per fish-hour: boundary {:.1}, neighbour {:.1} · reward/decision {:.3}",
+        if s.fish == 1 {
+            "none (a lone fish)".to_string()
+        } else {
+            format!("{:.2} BL (5th pct {:.2})", s.nn_mean_bl, s.nn_p05_bl)
+        },
         s.mean_speed_bl,
         s.boundary_collisions_per_fish_hour,
         s.neighbour_collisions_per_fish_hour,
