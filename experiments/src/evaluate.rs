@@ -364,7 +364,11 @@ fn plot_depth(path: &Path, s: &Summary, height: f32, title: &str) -> Result<()> 
 }
 
 /// Top-down (x–z) trajectories of the tracked fish over the last 30 s, with the
-/// cage outline; a dot marks each fish's latest position.
+/// cage outline; a dot marks each fish's latest position. Drawn as seen from
+/// above (x right, z down the page, as the replay clip's top view: SPEC's frame
+/// is right-handed with y up), so a fish turning clockwise there turns
+/// clockwise in `turn_rate_deg_s`'s sense. (Plots drawn before session 54 had
+/// z up the page: the view from below, a mirror image.)
 fn plot_tracks(path: &Path, env: &Env, eval: &Evaluation, title: &str) -> Result<()> {
     let outline = env.cage().outline();
     let (lo, hi) = env.cage().bounds;
@@ -393,8 +397,8 @@ fn plot_tracks(path: &Path, env: &Env, eval: &Evaluation, title: &str) -> Result
         let mut chart = eval_chart(
             root,
             (&caption, 17.0),
-            (-half..half, -half..half),
-            ("x (m)", "z (m)"),
+            (-half..half, half..-half),
+            ("x (m)", "z (m), seen from above"),
             false,
         )?;
         chart
