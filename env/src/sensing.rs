@@ -16,7 +16,9 @@
 //! in the fish's local frame, `u = (0, 0, 1) − R⁻¹·f_front` (zero without a
 //! neighbour in front). With the profile's `heading_of = "closing"` (not in
 //! the sources) `u` is of the neighbour that will come closest within
-//! [`CLOSING_HORIZON_S`] instead ([`closest_approach`]).
+//! [`CLOSING_HORIZON_S`] instead ([`closest_approach`]); with `heading_of =
+//! "rewarded"` (not in the sources either) `u` is of the mean heading of the
+//! neighbours `r_ND` is paid for.
 
 use crate::config::{Extensions, HeadingOf, NeighbourForm, NeighbourWeight, PersonalSpaceOf};
 use crate::kinematics::{basis, fast_acos_deg};
@@ -43,6 +45,9 @@ pub(crate) struct Surroundings {
     /// The neighbour whose heading `u` gives: the nearest in front, or with
     /// `heading_of = "closing"` the one coming closest.
     pub nearest_front: Option<u32>,
+    /// `Σ` of the headings of the neighbours `alignment_sum` counts (for
+    /// `heading_of = "rewarded"`).
+    pub rewarded_heading: Vec3,
     pub nearest_subordinate: Option<u32>,
 }
 
@@ -116,10 +121,12 @@ pub(crate) fn boundary_closeness(
         .sum()
 }
 
-/// The `K` nearest neighbours' alignment terms seen so far, by distance.
+/// The `K` nearest neighbours' alignment terms (and headings) seen so far,
+/// by distance.
 struct Nearest<const K: usize> {
     d: [f32; K],
     a: [f32; K],
+    h: [Vec3; K],
     len: usize,
 }
 
@@ -128,12 +135,13 @@ impl<const K: usize> Nearest<K> {
         Self {
             d: [f32::INFINITY; K],
             a: [0.0; K],
+            h: [Vec3::ZERO; K],
             len: 0,
         }
     }
 
-    /// Keep `(d, a)` if it is among the `cap` (≤ K) nearest so far.
-    fn offer(&mut self, cap: usize, d: f32, a: f32) {
+    /// Keep `(d, a, h)` if it is among the `cap` (≤ K) nearest so far.
+    fn offer(&mut self, cap: usize, d: f32, a: f32, h: Vec3) {
         let cap = cap.min(K);
         if self.len == cap && d >= self.d[cap - 1] {
             return;
@@ -145,14 +153,20 @@ impl<const K: usize> Nearest<K> {
         while k > 0 && self.d[k - 1] > d {
             self.d[k] = self.d[k - 1];
             self.a[k] = self.a[k - 1];
+            self.h[k] = self.h[k - 1];
             k -= 1;
         }
         self.d[k] = d;
         self.a[k] = a;
+        self.h[k] = h;
     }
 
     fn sum(&self) -> f32 {
         self.a[..self.len].iter().sum()
+    }
+
+    fn heading_sum(&self) -> Vec3 {
+        self.h[..self.len].iter().sum()
     }
 }
 
@@ -275,9 +289,10 @@ impl Sensing<'_> {
                 }
                 if cap == 0 {
                     seen.alignment_sum += align;
+                    seen.rewarded_heading += n.heading;
                     counted += 1;
                 } else {
-                    nearest.offer(cap, d, align);
+                    nearest.offer(cap, d, align, n.heading);
                 }
             }
             if closing {
@@ -308,6 +323,7 @@ impl Sensing<'_> {
         frame.add_spheres(self.sensor, &spheres);
         if cap > 0 {
             seen.alignment_sum = nearest.sum();
+            seen.rewarded_heading = nearest.heading_sum();
             counted = nearest.len as u32;
         }
         if counted > 0 {
@@ -329,14 +345,18 @@ impl Sensing<'_> {
     }
 
     /// `[u (3), depth / H, aggressor, target]`; the roles are those of the state
-    /// now. A mirrored fish sees `u_x` negated.
+    /// now. A mirrored fish sees `u_x` negated. `u` is of the nearest fish in
+    /// front, the closing one, or the rewarded neighbours' mean heading, as
+    /// the profile's `heading_of` says.
     pub fn vector_obs(&self, i: usize, seen: &Surroundings, out: &mut [f32]) {
         let w = self.world;
-        let u = match seen.nearest_front {
-            Some(j) => {
-                let to_local = basis(w.heading[i], w.roll[i]).transpose();
-                Vec3::Z - to_local * w.heading[j as usize]
-            }
+        let heading = if self.extensions.heading_of == HeadingOf::Rewarded {
+            seen.rewarded_heading.try_normalize()
+        } else {
+            seen.nearest_front.map(|j| w.heading[j as usize])
+        };
+        let u = match heading {
+            Some(h) => Vec3::Z - basis(w.heading[i], w.roll[i]).transpose() * h,
             None => Vec3::ZERO,
         };
         out[0] = if self.traits.is_mirrored(i) {

@@ -176,3 +176,40 @@ fn u_of_the_closing_neighbour() {
         );
     }
 }
+
+/// `heading_of = "rewarded"`: `u` of the mean heading of the neighbours
+/// `r_ND` is paid for. Coho of 0.49 m, personal space 0.66 BL = 0.3234 m.
+/// Fish 0 heads +z; fish 1, 0.2 m ahead heading +x, is inside the personal
+/// space (the nearest in front: `"front"` gives u = (−1, 0, 1)); fish 2 and 3,
+/// 1 m to either side, head +z and −x; fish 4, 1.2 m behind, heads −z. With
+/// `neighbour_cap` 2 the rewarded ones are fish 2 and 3, mean heading
+/// (−1, 0, 1)/√2 → u = (1/√2, 0, 1 − 1/√2); uncapped, fish 4 too, the sum
+/// (−1, 0, 0) → u = (1, 0, 1).
+#[test]
+fn u_of_the_rewarded_neighbours() {
+    use deepfoids_env::config::HeadingOf;
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    for (of, cap, want) in [
+        (HeadingOf::Front, 2, [-1.0, 0.0, 1.0]),
+        (HeadingOf::Rewarded, 2, [h, 0.0, 1.0 - h]),
+        (HeadingOf::Rewarded, 0, [1.0, 0.0, 1.0]),
+    ] {
+        let mut s = scene("coho_default", 5);
+        s.rewards.extensions.heading_of = of;
+        s.rewards.extensions.personal_space_bl = 0.66;
+        s.rewards.neighbour_cap = cap;
+        let mut env = calm_env(s);
+        let c = Vec3::new(0.0, -2.3, 0.0);
+        place(&mut env, 0, c, Vec3::Z, 0.5);
+        place(&mut env, 1, c + Vec3::new(0.0, 0.0, 0.2), Vec3::X, 0.5);
+        place(&mut env, 2, c + Vec3::new(1.0, 0.0, 0.0), Vec3::Z, 0.5);
+        place(&mut env, 3, c + Vec3::new(-1.0, 0.0, 0.0), -Vec3::X, 0.5);
+        place(&mut env, 4, c + Vec3::new(0.0, 0.0, -1.2), -Vec3::Z, 0.5);
+        env.observe_now();
+        let v = &env.output().behaviours[0].vectors[..3];
+        assert!(
+            (0..3).all(|k| close(v[k], want[k], 1e-5)),
+            "{of:?} cap {cap}: u = {v:?}, want {want:?}"
+        );
+    }
+}

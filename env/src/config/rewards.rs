@@ -182,6 +182,12 @@ pub enum HeadingOf {
     /// velocities (the least distance of closest approach, ties to the nearer
     /// now): the one a collision is coming from. Not in the sources.
     Closing,
+    /// The mean heading (normalised) of the neighbours `r_ND` is paid for:
+    /// the `neighbour_cap` nearest outside the personal space (all within
+    /// `d_sense` when uncapped), conspecifics only with `conspecific_only`.
+    /// The fish is shown the headings its alignment reward is computed from;
+    /// `u` is zero when there are none. Not in the sources.
+    Rewarded,
 }
 
 impl HeadingOf {
@@ -190,6 +196,7 @@ impl HeadingOf {
         match self {
             HeadingOf::Front => "front",
             HeadingOf::Closing => "closing",
+            HeadingOf::Rewarded => "rewarded",
         }
     }
 }
