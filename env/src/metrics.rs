@@ -97,23 +97,27 @@ impl SchoolState {
 }
 
 /// Nearest-neighbour distance of every fish in its own body lengths
-/// (`f32::INFINITY` for a fish alone), using `grid` (rebuilt here).
-pub fn nearest_neighbour_bl(
+/// (`f32::INFINITY` for a fish alone) into `out`, and that neighbour's index
+/// (`u32::MAX` for a fish alone) into `index`, using `grid` (rebuilt here).
+pub fn nearest_neighbours(
     position: &[Vec3],
     bl: &[f32],
     grid: &mut SpatialGrid,
     out: &mut Vec<f32>,
+    index: &mut Vec<u32>,
 ) {
     grid.rebuild(position, &[]);
     out.clear();
+    index.clear();
     for (i, &p) in position.iter().enumerate() {
         // Grow the search until something is found (cells are a few BL wide).
         let mut radius = grid.cell_size();
-        let mut best = f32::INFINITY;
+        let (mut best, mut who) = (f32::INFINITY, u32::MAX);
         for _ in 0..6 {
             grid.for_each_candidate(p, radius, |j, q| {
-                if j != i {
-                    best = best.min(q.truncate().distance_squared(p));
+                let d2 = q.truncate().distance_squared(p);
+                if j != i && d2 < best {
+                    (best, who) = (d2, j as u32);
                 }
             });
             if best <= radius * radius {
@@ -122,7 +126,24 @@ pub fn nearest_neighbour_bl(
             radius *= 2.0;
         }
         out.push(best.sqrt() / bl[i]);
+        index.push(who);
     }
+}
+
+/// The mean over the fish of `cos` of the angle between a fish's heading and
+/// its nearest neighbour's (`index`, from [`nearest_neighbours`]; fish alone
+/// left out, NaN when every fish is): 1 when neighbours swim side by side,
+/// as in a polarised school or a mill, ≈ 0 for independent headings. Not in
+/// the sources: P and M judge the whole school, this a fish's neighbourhood.
+pub fn neighbour_alignment(heading: &[Vec3], index: &[u32]) -> f32 {
+    let (mut sum, mut n) = (0.0f32, 0usize);
+    for (i, &j) in index.iter().enumerate() {
+        if j != u32::MAX {
+            sum += heading[i].dot(heading[j as usize]);
+            n += 1;
+        }
+    }
+    if n == 0 { f32::NAN } else { sum / n as f32 }
 }
 
 /// The `q`-quantile (0–1) of `values` by linear interpolation (sorts a copy).
@@ -237,6 +258,8 @@ pub struct Sample {
     /// Mean and 5th percentile of the nearest-neighbour distance (BL).
     pub nn_mean_bl: f32,
     pub nn_p05_bl: f32,
+    /// [`neighbour_alignment`] now.
+    pub nn_alignment: f32,
     /// Mean speed (BL/s) and depth (m).
     pub speed_bl: f32,
     pub depth: f32,
@@ -270,14 +293,20 @@ pub struct BehaviourSummary {
     /// The mean of the fish's turning rates about the vertical (deg/s, +
     /// clockwise seen from above; [`Turning`]) and the share of fish turning
     /// clockwise. Absent (NaN) in files written before they were measured.
-    #[serde(default = "nan")]
+    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub turn_rate_deg_s: f32,
-    #[serde(default = "nan")]
+    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub clockwise_share: f32,
 }
 
 fn nan() -> f32 {
     f32::NAN
+}
+
+/// A value that may be NaN, as `serde_json` writes NaN (`null`), read back
+/// as NaN (a lone fish has no nearest neighbour).
+fn f32_or_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    Ok(Option::<f32>::deserialize(d)?.unwrap_or(f32::NAN))
 }
 
 /// Everything `eval` reports, for the whole school.
@@ -294,17 +323,23 @@ pub struct Summary {
     pub state_share: Vec<(SchoolState, f32)>,
     /// The state most often seen.
     pub dominant_state: SchoolState,
+    #[serde(deserialize_with = "f32_or_nan")]
     pub nn_mean_bl: f32,
+    #[serde(deserialize_with = "f32_or_nan")]
     pub nn_p05_bl: f32,
+    /// The mean over the samples of [`neighbour_alignment`]. Absent (NaN) in
+    /// files written before it was measured.
+    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
+    pub nn_alignment: f32,
     pub boundary_collisions_per_fish_hour: f64,
     pub neighbour_collisions_per_fish_hour: f64,
     pub mean_speed_bl: f32,
     pub reward_per_decision: f64,
     /// As [`BehaviourSummary::turn_rate_deg_s`] and
     /// [`BehaviourSummary::clockwise_share`], over every fish.
-    #[serde(default = "nan")]
+    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub turn_rate_deg_s: f32,
-    #[serde(default = "nan")]
+    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub clockwise_share: f32,
     pub behaviours: Vec<BehaviourSummary>,
 }
@@ -333,6 +368,7 @@ pub struct Recorder {
     depth_bins: usize,
     grid: SpatialGrid,
     nn: Vec<f32>,
+    nn_index: Vec<u32>,
     acc: Vec<Acc>,
     pending_boundary: u64,
     pending_neighbour: u64,
@@ -354,6 +390,7 @@ impl Recorder {
             depth_bins,
             grid: SpatialGrid::new(lo, hi, 2.0 * max_bl, env.world().len()),
             nn: Vec::with_capacity(env.world().len()),
+            nn_index: Vec::with_capacity(env.world().len()),
             acc: vec![
                 Acc {
                     depth: vec![0; depth_bins],
@@ -406,7 +443,13 @@ impl Recorder {
                 order_parameters(&f.position, &f.heading, Some(&idx))
             })
             .collect();
-        nearest_neighbour_bl(&f.position, &f.bl, &mut self.grid, &mut self.nn);
+        nearest_neighbours(
+            &f.position,
+            &f.bl,
+            &mut self.grid,
+            &mut self.nn,
+            &mut self.nn_index,
+        );
         let finite: Vec<f32> = self.nn.iter().copied().filter(|x| x.is_finite()).collect();
         let nn_mean = if finite.is_empty() {
             f32::NAN
@@ -443,6 +486,7 @@ impl Recorder {
             per_behaviour,
             nn_mean_bl: nn_mean,
             nn_p05_bl: quantile(&finite, 0.05),
+            nn_alignment: neighbour_alignment(&f.heading, &self.nn_index),
             speed_bl: speed,
             depth,
             boundary_collisions: std::mem::take(&mut self.pending_boundary),
@@ -541,6 +585,7 @@ impl Recorder {
             dominant_state,
             nn_mean_bl: finite_mean(&|x| x.nn_mean_bl),
             nn_p05_bl: finite_mean(&|x| x.nn_p05_bl),
+            nn_alignment: finite_mean(&|x| x.nn_alignment),
             boundary_collisions_per_fish_hour: self.acc.iter().map(|a| a.boundary).sum::<u64>()
                 as f64
                 / fish_hours.max(1e-12),
@@ -707,9 +752,60 @@ mod tests {
             0.4,
             3,
         );
-        let mut out = vec![];
-        nearest_neighbour_bl(&pos, &bl, &mut grid, &mut out);
+        let (mut out, mut index) = (vec![], vec![]);
+        nearest_neighbours(&pos, &bl, &mut grid, &mut out, &mut index);
         assert_eq!(out, vec![1.0, 2.0, 4.0]);
+        assert_eq!(index, vec![1, 0, 1]);
         assert!((quantile(&[1.0, 2.0, 3.0, 4.0, 5.0], 0.05) - 1.2).abs() < 1e-6);
+    }
+
+    /// A lone fish's summary (no nearest neighbour: NaN, which JSON writes
+    /// as `null`) reads back, NaN where it was NaN; a file from before
+    /// `nn_alignment` and the turning were measured reads as NaN too.
+    #[test]
+    fn a_lone_fish_summary_reads_back() {
+        let s = Summary {
+            seconds: 60.0,
+            samples: 2,
+            fish: 1,
+            p_mean: 1.0,
+            p_std: 0.0,
+            m_mean: 0.5,
+            m_std: 0.0,
+            state_share: SchoolState::ALL.iter().map(|s| (*s, 0.25)).collect(),
+            dominant_state: SchoolState::Swarm,
+            nn_mean_bl: f32::NAN,
+            nn_p05_bl: f32::NAN,
+            nn_alignment: f32::NAN,
+            boundary_collisions_per_fish_hour: 0.0,
+            neighbour_collisions_per_fish_hour: 0.0,
+            mean_speed_bl: 1.5,
+            reward_per_decision: 1.0,
+            turn_rate_deg_s: -29.7,
+            clockwise_share: 0.0,
+            behaviours: vec![],
+        };
+        let json = serde_json::to_string(&s).unwrap();
+        assert!(json.contains("\"nn_alignment\":null"), "{json}");
+        let back: Summary = serde_json::from_str(&json).unwrap();
+        assert!(back.nn_mean_bl.is_nan() && back.nn_p05_bl.is_nan() && back.nn_alignment.is_nan());
+        assert_eq!((back.turn_rate_deg_s, back.clockwise_share), (-29.7, 0.0));
+        let old = json
+            .replace(",\"nn_alignment\":null", "")
+            .replace(",\"turn_rate_deg_s\":-29.7", "");
+        let back: Summary = serde_json::from_str(&old).unwrap();
+        assert!(back.nn_alignment.is_nan() && back.turn_rate_deg_s.is_nan());
+    }
+
+    /// Fish 0 and 1 are each other's nearest, 60° apart (cos 0.5); fish 2's
+    /// nearest is fish 1, heading opposite (−1): (0.5 + 0.5 − 1)/3 = 0. A fish
+    /// alone is left out; a school of one has no alignment.
+    #[test]
+    fn neighbour_alignment_by_hand() {
+        let (c, s) = (0.5f32, 0.75f32.sqrt());
+        let heading = [Vec3::X, Vec3::new(c, 0.0, s), Vec3::new(-c, 0.0, -s)];
+        assert!(neighbour_alignment(&heading, &[1, 0, 1]).abs() < 1e-6);
+        assert!((neighbour_alignment(&heading, &[1, 0, u32::MAX]) - 0.5).abs() < 1e-6);
+        assert!(neighbour_alignment(&heading[..1], &[u32::MAX]).is_nan());
     }
 }

@@ -163,7 +163,7 @@ fn write_csv(path: &Path, eval: &Evaluation) -> Result<()> {
     }
     writeln!(
         f,
-        ",nn_mean_bl,nn_p05_bl,speed_bl,depth_m,boundary_collisions,neighbour_collisions,reward"
+        ",nn_mean_bl,nn_p05_bl,nn_alignment,speed_bl,depth_m,boundary_collisions,neighbour_collisions,reward"
     )?;
     for s in &eval.recorder.samples {
         write!(f, "{:.3},{:.5},{:.5},{}", s.t, s.p, s.m, s.state.as_str())?;
@@ -172,9 +172,10 @@ fn write_csv(path: &Path, eval: &Evaluation) -> Result<()> {
         }
         writeln!(
             f,
-            ",{:.4},{:.4},{:.4},{:.4},{},{},{}",
+            ",{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{}",
             s.nn_mean_bl,
             s.nn_p05_bl,
+            s.nn_alignment,
             s.speed_bl,
             s.depth,
             s.boundary_collisions,
@@ -229,7 +230,10 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
         if s.fish == 1 {
             "none (a lone fish)".to_string()
         } else {
-            format!("{:.2} BL (5th pct {:.2})", s.nn_mean_bl, s.nn_p05_bl)
+            format!(
+                "{:.2} BL (5th pct {:.2}; heading agreement with it {:.2})",
+                s.nn_mean_bl, s.nn_p05_bl, s.nn_alignment
+            )
         },
         s.mean_speed_bl,
         s.boundary_collisions_per_fish_hour,
