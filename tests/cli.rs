@@ -311,6 +311,14 @@ fn train_export_and_eval_through_onnx() {
         std::fs::read(&onnx).unwrap(),
         std::fs::read(run.join("final/seabream_regular.onnx")).unwrap()
     );
+    // It names the reward profile the run trained under (the default one).
+    let meta = deepfoids_onnx::runtime::read_metadata(&std::fs::read(&onnx).unwrap());
+    let profile = std::fs::read_to_string(run.join("config.toml")).unwrap();
+    let profile: toml::Table = profile.parse().unwrap();
+    assert_eq!(
+        meta["reward_profile"],
+        profile["scene"]["reward_profile"].as_str().unwrap()
+    );
     // A SAC run does not start from a PPO run.
     cli_fails(
         &format!(

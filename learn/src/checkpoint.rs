@@ -103,6 +103,7 @@ impl RunState {
             algorithm: self.algo.as_str().into(),
             training_step,
             run: self.run_id.clone(),
+            reward_profile: self.reward_profile.clone(),
         }
     }
 

@@ -75,6 +75,7 @@ fn seabream_meta(algorithm: &str, training_step: u64) -> Metadata {
         algorithm: algorithm.into(),
         training_step,
         run: "test".into(),
+        reward_profile: Some("thesis".into()),
     }
 }
 
@@ -111,6 +112,7 @@ fn tract_matches_the_burn_actor() {
         let policy = OnnxPolicy::load(&path, false).unwrap();
         assert_eq!(policy.metadata["species"], "seabream");
         assert_eq!(policy.metadata["training_step"], "12345");
+        assert_eq!(policy.metadata["reward_profile"], "thesis");
 
         let expected: Vec<f32> = mean
             .clamp(-1.0, 1.0)

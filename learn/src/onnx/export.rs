@@ -44,12 +44,16 @@ pub struct Metadata {
     pub algorithm: String,
     pub training_step: u64,
     pub run: String,
+    /// The reward profile the run trained under (recorded as
+    /// `reward_profile` when known): its `heading_of` and action timing
+    /// complete the layouts.
+    pub reward_profile: Option<String>,
 }
 
 /// The observation layout recorded in the file.
-pub const OBSERVATION_LAYOUT: &str = "obs_0: [batch, 18, 20, 34] (C, H, W): 3 stacked frames, oldest first, of 6 channels [proximity = 1 - distance/d_sense, fish, net, water surface, obstacle, chase partner] over 20 elevation rows (+90° to -90°, 9° each) x 34 azimuth columns (-170° to +170°, 10° each, positive to the fish's right); obs_1: [batch, 6] = [u_x, u_y, u_z (own forward minus the forward of the nearest neighbour in front, local frame: +x left, +y up, +z forward), depth / cage height, aggressor, target]";
+pub const OBSERVATION_LAYOUT: &str = "obs_0: [batch, 18, 20, 34] (C, H, W): 3 stacked frames, oldest first, of 6 channels [proximity = 1 - distance/d_sense, fish, net, water surface, obstacle, chase partner] over 20 elevation rows (+90° to -90°, 9° each) x 34 azimuth columns (-170° to +170°, 10° each, positive to the fish's right); obs_1: [batch, 6] = [u_x, u_y, u_z (own forward minus a neighbour's forward, local frame: +x left, +y up, +z forward; the nearest neighbour in front, or what the reward profile's heading_of names: the closing neighbour, or the mean heading of the neighbours r_ND pays for), depth / cage height, aggressor, target]";
 /// The action layout recorded in the file.
-pub const ACTION_LAYOUT: &str = "[batch, 3] in [-1, 1]: [speed change / 4.1 BL/s, pitch change / 20° (positive: nose down), yaw change / 20° (positive: towards local +x, the fish's left)] per decision";
+pub const ACTION_LAYOUT: &str = "[batch, 3] in [-1, 1]: [speed change, pitch change (positive: nose down), yaw change (positive: towards local +x, the fish's left)]; under the reward profile's per_step action timing (SPEC §4, the default) held at every physics step of the decision: speed by a x the species' max_delta_speed_bl BL/s per second (coho 4.1), pitch and yaw by a x timing.turn_step_deg (1°) per step; under per_decision timing, speed by a x max_delta_speed_bl BL/s and turns by a x physics.max_turn_deg (20°) per decision";
 
 struct Builder {
     nodes: Vec<NodeProto>,
@@ -378,6 +382,10 @@ fn model(graph: GraphProto, meta: &Metadata) -> ModelProto {
         ("observation_layout", OBSERVATION_LAYOUT.to_string()),
         ("action_layout", ACTION_LAYOUT.to_string()),
     ];
+    let profile = meta
+        .reward_profile
+        .as_ref()
+        .map(|p| ("reward_profile", p.clone()));
     super::build::model(
         graph,
         IR_VERSION,
@@ -386,6 +394,10 @@ fn model(graph: GraphProto, meta: &Metadata) -> ModelProto {
             "{} policy for {} ({}), step {}",
             meta.algorithm, meta.behaviour, meta.scene, meta.training_step
         ),
-        props.into_iter().map(|(k, v)| (k.to_string(), v)).collect(),
+        props
+            .into_iter()
+            .chain(profile)
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
     )
 }
