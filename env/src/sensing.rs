@@ -45,8 +45,8 @@ pub(crate) struct Surroundings {
     /// The neighbour whose heading `u` gives: the nearest in front, or with
     /// `heading_of = "closing"` the one coming closest.
     pub nearest_front: Option<u32>,
-    /// `Σ` of the headings of the neighbours `alignment_sum` counts (for
-    /// `heading_of = "rewarded"`).
+    /// `Σ` of the headings of the neighbours `alignment_sum` counts, summed
+    /// only with `heading_of = "rewarded"` (zero otherwise: the hot path skips it).
     pub rewarded_heading: Vec3,
     pub nearest_subordinate: Option<u32>,
 }
@@ -248,6 +248,7 @@ impl Sensing<'_> {
         let wants_target = w.dominant[i] && w.chase[i] == Chase::None;
         let (mut front_d, mut sub_d) = (f32::INFINITY, f32::INFINITY);
         let closing = self.extensions.heading_of == HeadingOf::Closing;
+        let rewarded = self.extensions.heading_of == HeadingOf::Rewarded;
         let (v_i, mut closest) = (f * w.speed[i], (f32::INFINITY, f32::INFINITY));
         let range2 = range * range;
         let mut spheres = SphereBatch::new();
@@ -289,7 +290,9 @@ impl Sensing<'_> {
                 }
                 if cap == 0 {
                     seen.alignment_sum += align;
-                    seen.rewarded_heading += n.heading;
+                    if rewarded {
+                        seen.rewarded_heading += n.heading;
+                    }
                     counted += 1;
                 } else {
                     nearest.offer(cap, d, align, n.heading);
@@ -323,7 +326,9 @@ impl Sensing<'_> {
         frame.add_spheres(self.sensor, &spheres);
         if cap > 0 {
             seen.alignment_sum = nearest.sum();
-            seen.rewarded_heading = nearest.heading_sum();
+            if rewarded {
+                seen.rewarded_heading = nearest.heading_sum();
+            }
             counted = nearest.len as u32;
         }
         if counted > 0 {
