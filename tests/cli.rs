@@ -263,6 +263,30 @@ fn simulate_takes_the_baselines_too() {
     assert!(text(&o).contains("policy foids"));
 }
 
+/// `--steps-per-fish` gives each behaviour its fish count times the decisions:
+/// seabream_default's 10 fish × 30 = 300 agent steps, recorded as the run's
+/// budget; it cannot be given with `--steps`.
+#[test]
+fn a_budget_per_fish_is_the_school_times_it() {
+    let runs = temp("per-fish");
+    cli_ok(&format!(
+        "train --scene seabream_default --steps-per-fish 30 --allow-no-update --seed 5 --runs-dir {} --run-id pf --eval-seconds 0 --quiet",
+        runs.display()
+    ));
+    let config = std::fs::read_to_string(runs.join("pf/config.toml")).unwrap();
+    assert!(config.contains("seabream_regular = 300"), "{config}");
+    let state = json(&runs.join("pf/final/state.json"));
+    assert_eq!(state["agent_steps"], 300, "{state}");
+    cli_fails(
+        "train --scene seabream_default --steps 100 --steps-per-fish 30",
+        "cannot be used with",
+    );
+    cli_fails(
+        "train --scene seabream_default --steps-per-fish 0",
+        "--steps-per-fish 0 would train nothing",
+    );
+}
+
 /// train (a few decisions) → export → eval with the .onnx (tract) and with the run
 /// folder (Burn): the same seed drives the same school.
 #[test]

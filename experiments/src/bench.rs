@@ -140,7 +140,7 @@ pub fn train(dirs: &ConfigDirs, args: &TrainBench) -> Result<()> {
         run_dir: tmp.clone(),
         run_id: "bench".into(),
         seed: args.seed,
-        steps: Some(steps),
+        steps: Some(steps.into()),
         resume: false,
         init_from: vec![],
         backend: args.backend,

@@ -18,6 +18,7 @@ use deepfoids_env::config::ConfigError;
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 use deepfoids_io::write_atomic;
+use deepfoids_learn::Budget;
 use std::path::Path;
 
 /// What the pipeline trains (the options of `deepfoids pipeline`).
@@ -77,7 +78,7 @@ pub fn run(dirs: &ConfigDirs, args: &PipelineOptions) -> Result<()> {
     ] {
         for scene_id in ids {
             let scene = load_scene(dirs, scene_id, phase)?;
-            crate::training::check_start(dirs, &scene, steps, &[], opts)
+            crate::training::check_start(dirs, &scene, steps.map(Budget::Steps), &[], opts)
                 .with_context(|| format!("pipeline stage {scene_id} ({})", phase.as_str()))?;
         }
     }
@@ -270,6 +271,7 @@ fn stage(
         if opts.eval_seconds <= 0.0 {
             opts.eval_seconds = 60.0;
         }
+        let steps = steps.map(Budget::Steps);
         let t = train_scene(dirs, scene, dir, run_id, steps, init_from, resume, &opts)?;
         let end = curve_ends(&t.outcome.curve, 3).map(|x| x.1);
         (t.summary.expect("evaluated"), end, t.outcome.agent_steps)

@@ -7,7 +7,7 @@ use anyhow::{Context, Result, bail};
 use deepfoids_env::metrics::Summary;
 use deepfoids_env::{ConfigDirs, Env, Policy, Scene};
 use deepfoids_learn::driver::{check_run, open_sources};
-use deepfoids_learn::{Algorithm, Backend, ProgressMode, RunArgs, TrainOutcome};
+use deepfoids_learn::{Algorithm, Backend, Budget, ProgressMode, RunArgs, TrainOutcome};
 use deepfoids_ppo::Ppo;
 use deepfoids_sac::Sac;
 use std::path::{Path, PathBuf};
@@ -98,7 +98,7 @@ impl Config {
 pub fn check_start(
     dirs: &ConfigDirs,
     scene: &Scene,
-    steps: Option<u64>,
+    steps: Option<Budget>,
     init_from: &[PathBuf],
     opts: &TrainOptions,
 ) -> Result<Vec<String>> {
@@ -145,7 +145,7 @@ pub fn train_scene(
     scene: Scene,
     run_dir: &Path,
     run_id: &str,
-    steps: Option<u64>,
+    steps: Option<Budget>,
     init_from: &[PathBuf],
     resume: bool,
     opts: &TrainOptions,
@@ -155,10 +155,13 @@ pub fn train_scene(
     let mut budgets = toml::Table::new();
     for b in &scene.behaviours {
         let species = &b.species.name;
-        let budget = steps.unwrap_or_else(|| match &config {
-            Config::Ppo(c) => c.config.budget(species, scene.phase),
-            Config::Sac(c) => c.config.budget(species, scene.phase),
-        });
+        let budget = steps.map_or_else(
+            || match &config {
+                Config::Ppo(c) => c.config.budget(species, scene.phase),
+                Config::Sac(c) => c.config.budget(species, scene.phase),
+            },
+            |s| s.steps(b.count),
+        );
         budgets.insert(b.name.clone(), (budget as i64).into());
     }
     let config_toml = if resume {

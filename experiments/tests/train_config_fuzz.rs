@@ -87,7 +87,7 @@ fn max_plan(scene: &Scene, ppo: bool) -> u64 {
                 time_horizon: deepfoids_learn::plan::MAX_TIME_HORIZON as usize,
                 ..PpoConfig::default()
             };
-            check_run(&Ppo::new(config), scene, Some(u64::MAX), true)
+            check_run(&Ppo::new(config), scene, Some(u64::MAX.into()), true)
                 .map(|c| c.plan.total())
                 .unwrap_or_else(|e| memory_need(&e))
         } else {
@@ -98,7 +98,7 @@ fn max_plan(scene: &Scene, ppo: bool) -> u64 {
                 batch_size: buffer as usize,
                 ..SacConfig::default()
             };
-            check_run(&Sac::new(config), scene, Some(u64::MAX), true)
+            check_run(&Sac::new(config), scene, Some(u64::MAX.into()), true)
                 .map(|c| c.plan.total())
                 .unwrap_or_else(|e| memory_need(&e))
         }
@@ -227,7 +227,7 @@ fn train_within_plan<T: Trainer + Trains>(
     ppo: bool,
     root: &Path,
 ) -> Result<(), TestCaseError> {
-    let plan = check_run(trainer, scene, Some(u64::MAX), true)
+    let plan = check_run(trainer, scene, Some(u64::MAX.into()), true)
         .map(|c| c.plan.total())
         .unwrap_or_else(|e| memory_need(&e));
     let max = max_plan(scene, ppo);
@@ -249,7 +249,7 @@ fn train_within_plan<T: Trainer + Trains>(
         run_dir: root.join("run"),
         run_id: "fuzz".into(),
         seed: 1,
-        steps: Some(steps),
+        steps: Some(steps.into()),
         resume: false,
         init_from: vec![],
         backend: Backend::Flex,

@@ -23,7 +23,8 @@
 //!
 //! # Budgets (ML-Agents' `max_steps`, per behaviour; issue 11 item 5)
 //! Each behaviour trains for its own budget of agent decisions — `--steps`,
-//! else its species' budget for the phase. A behaviour that has its budget
+//! or `--steps-per-fish` times its fish ([`Budget`]), else its species'
+//! budget for the phase. A behaviour that has its budget
 //! keeps acting (sampling from its policy, storing nothing, no updates) until
 //! every behaviour has its own, so the others train in the same world.
 //!
@@ -43,6 +44,7 @@
 //! holds the run folder's lock ([`run`]).
 
 use crate::backend::Backend;
+use crate::budget::Budget;
 use crate::checkpoint::{
     self, Algorithm, BehaviourState, PolicySource, RunState, find_source, replace_dir_atomic,
 };
@@ -65,8 +67,8 @@ pub struct RunArgs {
     pub run_dir: PathBuf,
     pub run_id: String,
     pub seed: u64,
-    /// Agent decisions per behaviour (its own); `None`: the species' budget for the phase.
-    pub steps: Option<u64>,
+    /// Each behaviour's budget ([`Budget`]); `None`: the species' budget for the phase.
+    pub steps: Option<Budget>,
     pub resume: bool,
     /// Runs to take the initial weights from (transfer learning).
     pub init_from: Vec<PathBuf>,
@@ -375,7 +377,7 @@ pub fn open_sources<T: Trainer>(
 pub fn check_run<T: Trainer>(
     trainer: &T,
     scene: &Scene,
-    steps: Option<u64>,
+    steps: Option<Budget>,
     allow_no_update: bool,
 ) -> Result<RunCheck> {
     let mut notes = Vec::new();
@@ -387,7 +389,10 @@ pub fn check_run<T: Trainer>(
         }],
     };
     for b in &scene.behaviours {
-        let budget = steps.unwrap_or_else(|| trainer.budget(&b.species.name, scene.phase));
+        let budget = steps.map_or_else(
+            || trainer.budget(&b.species.name, scene.phase),
+            |s| s.steps(b.count),
+        );
         let updates = trainer.update_plan(b.count);
         if budget < updates.earliest && !allow_no_update {
             return Err(LearnError::NoUpdate {
@@ -729,9 +734,10 @@ fn learners<T: Trainer>(
             size_class: info.size_class.clone(),
             n: info.count,
             agent_steps,
-            budget: args
-                .steps
-                .unwrap_or_else(|| trainer.budget(&info.species, phase)),
+            budget: args.steps.map_or_else(
+                || trainer.budget(&info.species, phase),
+                |s| s.steps(info.count),
+            ),
             acting_for_training: false,
             stats: EpisodeStats::new(info.first, info.count),
         });

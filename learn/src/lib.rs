@@ -9,6 +9,7 @@
 pub mod algorithm;
 pub mod backend;
 pub mod body;
+pub mod budget;
 pub mod checkpoint;
 pub mod driver;
 pub mod error;
@@ -26,6 +27,7 @@ pub mod tfevents;
 pub use algorithm::Algorithm;
 pub use backend::Backend;
 pub use body::{ACTIONS, Body, BodyConfig, ENCODER_LAYOUT};
+pub use budget::Budget;
 pub use driver::{
     BufferMemory, Learner, LearnerCtx, RunArgs, RunSettings, StepCtx, Timing, TrainOutcome, Trainer,
 };

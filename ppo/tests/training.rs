@@ -54,7 +54,7 @@ fn args(
         run_dir: dir.to_path_buf(),
         run_id: "test".into(),
         seed,
-        steps: Some(steps),
+        steps: Some(steps.into()),
         resume,
         init_from,
         backend: Backend::Flex,

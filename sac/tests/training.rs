@@ -53,7 +53,7 @@ fn run_in(
             run_dir: dir.to_path_buf(),
             run_id: "test".into(),
             seed,
-            steps: Some(steps),
+            steps: Some(steps.into()),
             resume,
             init_from: vec![],
             backend: Backend::Flex,

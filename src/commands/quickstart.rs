@@ -58,6 +58,7 @@ pub fn default_job(dirs: &ConfigDirs) -> Result<()> {
         phase: q.phase,
         init_from: vec![],
         steps: Some(q.steps),
+        steps_per_fish: None,
         run_id: Some(format!("quickstart-ppo-{}", q.scene)),
         resume: false,
         force: true,

@@ -7,6 +7,7 @@ use clap::Args;
 use deepfoids_env::{ConfigDirs, Phase};
 use deepfoids_experiments::training::{Trained, check_start, prepare_run_dir, train_scene};
 use deepfoids_experiments::{bounds, load_scene, lock_dir, pretrained};
+use deepfoids_learn::Budget;
 use std::path::PathBuf;
 
 #[derive(Args, Debug, Clone)]
@@ -27,6 +28,12 @@ pub struct TrainArgs {
     /// max_steps) [default: the thesis' budget for its species and phase]
     #[arg(value_parser = whole::<u64>, long)]
     pub steps: Option<u64>,
+    /// Agent decisions to train per fish: a behaviour of n fish trains n × this
+    /// (equal training per fish in scenes of different school sizes; e.g. 13630
+    /// gives density_sparse's 38 fish 517,940 steps and density_dense's 587
+    /// fish 8,000,810)
+    #[arg(value_parser = whole::<u64>, long, value_name = "DECISIONS", conflicts_with = "steps")]
+    pub steps_per_fish: Option<u64>,
     /// Run name [default: <algo>-<scene>-<phase>-s<seed>]
     #[arg(long)]
     pub run_id: Option<String>,
@@ -38,6 +45,15 @@ pub struct TrainArgs {
     pub force: bool,
     #[command(flatten)]
     pub opts: TrainOptionArgs,
+}
+
+impl TrainArgs {
+    /// `--steps` or `--steps-per-fish`, if either is given.
+    pub fn budget(&self) -> Option<Budget> {
+        self.steps
+            .map(Budget::Steps)
+            .or(self.steps_per_fish.map(Budget::PerFish))
+    }
 }
 
 pub fn run(dirs: &ConfigDirs, args: &TrainArgs) -> Result<Trained> {
@@ -56,9 +72,13 @@ pub fn run(dirs: &ConfigDirs, args: &TrainArgs) -> Result<Trained> {
     if let Some(steps) = args.steps {
         bounds::train_steps("--steps", steps)?;
     }
+    if let Some(per_fish) = args.steps_per_fish {
+        bounds::train_steps("--steps-per-fish", per_fish)?;
+    }
+    let steps = args.budget();
     if !args.resume {
         // Before --force removes anything; train_scene checks again and prints the notes.
-        check_start(dirs, &scene, args.steps, &args.init_from, &opts)?;
+        check_start(dirs, &scene, steps, &args.init_from, &opts)?;
     }
     // One process per run folder, for the life of this one (issue 13 item 2).
     let _lock = lock_dir(&run_dir).map_err(|e| {
@@ -74,7 +94,7 @@ pub fn run(dirs: &ConfigDirs, args: &TrainArgs) -> Result<Trained> {
         scene,
         &run_dir,
         &run_id,
-        args.steps,
+        steps,
         &args.init_from,
         args.resume,
         &opts,
