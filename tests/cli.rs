@@ -285,6 +285,11 @@ fn a_budget_per_fish_is_the_school_times_it() {
         "train --scene seabream_default --steps-per-fish 0",
         "--steps-per-fish 0 would train nothing",
     );
+    // seabream_default's first update comes after 10,241 agent steps: 1,025 per fish.
+    cli_fails(
+        "train --scene seabream_default --steps-per-fish 100",
+        "(or --steps-per-fish to at least 1025)",
+    );
 }
 
 /// train (a few decisions) → export → eval with the .onnx (tract) and with the run

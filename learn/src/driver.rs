@@ -400,6 +400,7 @@ pub fn check_run<T: Trainer>(
                 agents: b.count,
                 budget,
                 first: updates.earliest,
+                first_per_fish: updates.earliest.div_ceil(b.count.max(1) as u64),
                 fields: trainer.update_fields(),
                 config: trainer.config_name(),
             });

@@ -98,13 +98,15 @@ pub enum LearnError {
     },
     /// A budget too small for a single update (`--allow-no-update` accepts it).
     #[error(
-        "behaviour {behaviour} ({agents} agents): a budget of {budget} agent steps makes no update; the first comes after {first} agent steps at the earliest ({fields} in {config}); raise --steps to at least {first}, lower those values, or pass --allow-no-update to run it anyway"
+        "behaviour {behaviour} ({agents} agents): a budget of {budget} agent steps makes no update; the first comes after {first} agent steps at the earliest ({fields} in {config}); raise --steps to at least {first} (or --steps-per-fish to at least {first_per_fish}), lower those values, or pass --allow-no-update to run it anyway"
     )]
     NoUpdate {
         behaviour: String,
         agents: usize,
         budget: u64,
         first: u64,
+        /// `first` shared among the behaviour's fish, rounded up.
+        first_per_fish: u64,
         fields: String,
         config: String,
     },
