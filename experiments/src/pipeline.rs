@@ -271,8 +271,8 @@ fn stage(
         if opts.eval_seconds <= 0.0 {
             opts.eval_seconds = 60.0;
         }
-        let steps = steps.map(Budget::Steps);
-        let t = train_scene(dirs, scene, dir, run_id, steps, init_from, resume, &opts)?;
+        let budget = steps.map(Budget::Steps);
+        let t = train_scene(dirs, scene, dir, run_id, budget, init_from, resume, &opts)?;
         let end = curve_ends(&t.outcome.curve, 3).map(|x| x.1);
         (t.summary.expect("evaluated"), end, t.outcome.agent_steps)
     };

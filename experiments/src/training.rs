@@ -155,13 +155,10 @@ pub fn train_scene(
     let mut budgets = toml::Table::new();
     for b in &scene.behaviours {
         let species = &b.species.name;
-        let budget = steps.map_or_else(
-            || match &config {
-                Config::Ppo(c) => c.config.budget(species, scene.phase),
-                Config::Sac(c) => c.config.budget(species, scene.phase),
-            },
-            |s| s.steps(b.count),
-        );
+        let budget = Budget::resolve(steps, b.count, || match &config {
+            Config::Ppo(c) => c.config.budget(species, scene.phase),
+            Config::Sac(c) => c.config.budget(species, scene.phase),
+        });
         budgets.insert(b.name.clone(), (budget as i64).into());
     }
     let config_toml = if resume {

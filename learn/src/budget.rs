@@ -21,6 +21,12 @@ impl Budget {
             Budget::PerFish(d) => d.saturating_mul(fish as u64),
         }
     }
+
+    /// The agent decisions a behaviour of `fish` fish trains under `budget`,
+    /// or `species` (its species' budget for the phase) when none is given.
+    pub fn resolve(budget: Option<Budget>, fish: usize, species: impl FnOnce() -> u64) -> u64 {
+        budget.map_or_else(species, |b| b.steps(fish))
+    }
 }
 
 impl From<u64> for Budget {
@@ -39,5 +45,7 @@ mod tests {
         assert_eq!(Budget::PerFish(13_630).steps(38), 517_940);
         assert_eq!(Budget::Steps(1_000_000).steps(587), 1_000_000);
         assert_eq!(Budget::PerFish(u64::MAX).steps(2), u64::MAX);
+        assert_eq!(Budget::resolve(Some(Budget::PerFish(3)), 10, || 7), 30);
+        assert_eq!(Budget::resolve(None, 10, || 7), 7);
     }
 }

@@ -389,10 +389,9 @@ pub fn check_run<T: Trainer>(
         }],
     };
     for b in &scene.behaviours {
-        let budget = steps.map_or_else(
-            || trainer.budget(&b.species.name, scene.phase),
-            |s| s.steps(b.count),
-        );
+        let budget = Budget::resolve(steps, b.count, || {
+            trainer.budget(&b.species.name, scene.phase)
+        });
         let updates = trainer.update_plan(b.count);
         if budget < updates.earliest && !allow_no_update {
             return Err(LearnError::NoUpdate {
@@ -735,10 +734,9 @@ fn learners<T: Trainer>(
             size_class: info.size_class.clone(),
             n: info.count,
             agent_steps,
-            budget: args.steps.map_or_else(
-                || trainer.budget(&info.species, phase),
-                |s| s.steps(info.count),
-            ),
+            budget: Budget::resolve(args.steps, info.count, || {
+                trainer.budget(&info.species, phase)
+            }),
             acting_for_training: false,
             stats: EpisodeStats::new(info.first, info.count),
         });
