@@ -7,7 +7,8 @@ One row per (profile, scene): the mean over the evaluation seeds of P, M, the
 state shares, the mean speed, the nearest-neighbour distance, boundary and
 neighbour collisions per fish-hour and the reward per decision, and the
 agreement of a fish's heading with its nearest neighbour's (`nn_alignment`,
-mean cos; "–" for evaluations written before it was measured)."""
+mean cos) and each fish's circling of the cage axis (`own_circling`); "–" for
+evaluations written before either was measured."""
 import json
 import re
 import sys
@@ -41,18 +42,23 @@ def mean(xs):
 
 order = ["coho_default", "density_sparse", "density_dense"]
 print("| profile | scene | seeds | P | M | swarm / mill / polar / trans % | speed BL/s "
-      "| NN BL | NN heading agreement | boundary /fish-h | neighbour /fish-h | reward /decision |")
-print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+      "| NN BL | NN heading agreement | own circling | boundary /fish-h | neighbour /fish-h | reward /decision |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for (run, scene) in sorted(rows, key=lambda k: (k[0], order.index(k[1]) if k[1] in order else 9)):
     ss = rows[(run, scene)]
     shares = " / ".join(
         f"{100 * mean([share(s, st) for s in ss]):.0f}"
         for st in ["swarm", "milling", "polarised", "transitional"])
-    agree = [s["nn_alignment"] for s in ss if s.get("nn_alignment") is not None]
-    agree = f"{mean(agree):.2f}" if len(agree) == len(ss) else "–"
+
+
+    def measured(key):
+        xs = [s[key] for s in ss if s.get(key) is not None]
+        return f"{mean(xs):.2f}" if len(xs) == len(ss) else "–"
+
     print(f"| {run} | {scene} | {len(ss)} | {mean([s['p_mean'] for s in ss]):.2f} "
           f"| {mean([s['m_mean'] for s in ss]):.2f} | {shares} "
-          f"| {mean([s['mean_speed_bl'] for s in ss]):.2f} | {mean([s['nn_mean_bl'] for s in ss]):.2f} | {agree} "
+          f"| {mean([s['mean_speed_bl'] for s in ss]):.2f} | {mean([s['nn_mean_bl'] for s in ss]):.2f} "
+          f"| {measured('nn_alignment')} | {measured('own_circling')} "
           f"| {mean([s['boundary_collisions_per_fish_hour'] for s in ss]):,.0f} "
           f"| {mean([s['neighbour_collisions_per_fish_hour'] for s in ss]):,.0f} "
           f"| {mean([s['reward_per_decision'] for s in ss]):.1f} |")

@@ -13,6 +13,11 @@
 //!   positive clockwise seen from above (from +x towards +z, y up), and the
 //!   share of fish turning clockwise. A lone fish of a lateralised policy circles one
 //!   way; so does every fish of a school that shares the policy (issue 21).
+//! * Own circling about the cage's vertical axis ([`Circling`]; not in the
+//!   sources): the mean over fish of |each fish's time-mean [`tangential`]
+//!   heading|. 1: every fish circles the axis, each in a sense of its own or
+//!   all in one; → 0: fish wander. M and P cannot tell fish that circle the
+//!   cage singly in mixed senses from a swarm; this can (issue 21, session 58).
 
 use crate::env::{N_TERMS, StepOutput, TERM_NAMES};
 use deepfoids_sensors::SpatialGrid;
@@ -245,6 +250,66 @@ impl Turning {
     }
 }
 
+/// The tangential part of a fish's horizontal heading about the vertical axis
+/// through `centre` (its x, z): the vertical component of r̂ × ĥ, with `r` the
+/// fish's horizontal offset from the axis and `ĥ` its horizontal heading, both
+/// normalised. +1 swimming counter-clockwise around the axis seen from above
+/// (y up; from +z towards +x), −1 clockwise, 0 straight towards or away
+/// from it. `None` on the axis or for a vertical heading.
+pub fn tangential(centre: (f32, f32), position: Vec3, heading: Vec3) -> Option<f32> {
+    let (rx, rz) = (position.x - centre.0, position.z - centre.1);
+    let r = rx.hypot(rz);
+    let h = heading.x.hypot(heading.z);
+    (r > 1e-6 && h > 1e-6).then(|| (rz * heading.x - rx * heading.z) / (r * h))
+}
+
+/// Each fish's circling about the cage's vertical axis: the time mean of its
+/// [`tangential`] heading over the samples where it has one. A fish that
+/// circles the axis one way all along scores ±1; one that wanders, passing
+/// the axis on either side, → 0 as the window grows. A respawned fish goes on
+/// adding to its mean. Not in the sources (issue 21, session 58).
+#[derive(Clone, Debug)]
+pub struct Circling {
+    centre: (f32, f32),
+    sum: Vec<f64>,
+    n: Vec<u32>,
+}
+
+impl Circling {
+    /// `fish` fish about the vertical axis through `centre` (x, z).
+    pub fn new(centre: (f32, f32), fish: usize) -> Self {
+        Self {
+            centre,
+            sum: vec![0.0; fish],
+            n: vec![0; fish],
+        }
+    }
+
+    /// Every fish's position and unit heading now.
+    pub fn sample(&mut self, position: &[Vec3], heading: &[Vec3]) {
+        for (i, (p, h)) in position.iter().zip(heading).enumerate() {
+            if let Some(c) = tangential(self.centre, *p, *h) {
+                self.sum[i] += f64::from(c);
+                self.n[i] += 1;
+            }
+        }
+    }
+
+    /// The mean over the fish of `range` of |their time-mean tangential
+    /// heading|, in [0, 1]; NaN if none of them has a sample.
+    pub fn own(&self, range: std::ops::Range<usize>) -> f32 {
+        let means: Vec<f64> = range
+            .filter(|&i| self.n[i] > 0)
+            .map(|i| (self.sum[i] / f64::from(self.n[i])).abs())
+            .collect();
+        if means.is_empty() {
+            f32::NAN
+        } else {
+            (means.iter().sum::<f64>() / means.len() as f64) as f32
+        }
+    }
+}
+
 /// One sample of the school, taken at a tick.
 #[derive(Clone, Debug, Serialize)]
 pub struct Sample {
@@ -297,6 +362,10 @@ pub struct BehaviourSummary {
     pub turn_rate_deg_s: f32,
     #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub clockwise_share: f32,
+    /// [`Circling::own`] over this behaviour's fish. Absent (NaN) in files
+    /// written before it was measured.
+    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
+    pub own_circling: f32,
 }
 
 fn nan() -> f32 {
@@ -341,6 +410,9 @@ pub struct Summary {
     pub turn_rate_deg_s: f32,
     #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub clockwise_share: f32,
+    /// [`Circling::own`] over every fish.
+    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
+    pub own_circling: f32,
     pub behaviours: Vec<BehaviourSummary>,
 }
 
@@ -373,6 +445,7 @@ pub struct Recorder {
     pending_boundary: u64,
     pending_neighbour: u64,
     turning: Turning,
+    circling: Circling,
     pub samples: Vec<Sample>,
 }
 
@@ -401,6 +474,10 @@ impl Recorder {
             pending_boundary: 0,
             pending_neighbour: 0,
             turning: Turning::new(env.world().len()),
+            circling: Circling::new(
+                (0.5 * (lo.x + hi.x), 0.5 * (lo.z + hi.z)),
+                env.world().len(),
+            ),
             samples: Vec::new(),
         }
     }
@@ -434,6 +511,7 @@ impl Recorder {
     pub fn sample(&mut self, out: &StepOutput) {
         let f = &out.fish;
         self.turning.sample(out.time, &f.heading);
+        self.circling.sample(&f.position, &f.heading);
         let (p, m) = order_parameters(&f.position, &f.heading, None);
         let per_behaviour: Vec<(f32, f32)> = self
             .ranges
@@ -568,6 +646,7 @@ impl Recorder {
                     mean_depth: (a.depth_sum / a.speed_n.max(1) as f64) as f32,
                     turn_rate_deg_s,
                     clockwise_share,
+                    own_circling: self.circling.own(self.ranges[b].clone()),
                 }
             })
             .collect();
@@ -597,6 +676,7 @@ impl Recorder {
                 / decisions.max(1) as f64,
             turn_rate_deg_s,
             clockwise_share,
+            own_circling: self.circling.own(0..fish),
             behaviours,
         }
     }
@@ -678,6 +758,66 @@ mod tests {
         let rate = turning.rates()[0];
         assert!((rate - 10.0).abs() < 1e-3, "{rate}");
         assert!(Turning::stats(&[f32::NAN]).0.is_nan());
+    }
+
+    /// About the axis through (1, 2): a fish at (3, ., 2) heading −z swims
+    /// counter-clockwise seen from above (+1); heading +z, clockwise (−1);
+    /// heading −x, straight at the axis (0); at 45° between −z and −x, 1/√2.
+    /// On the axis, or heading straight up, there is none.
+    #[test]
+    fn tangential_headings_by_hand() {
+        let c = (1.0, 2.0);
+        let p = Vec3::new(3.0, -1.0, 2.0);
+        let t = |h: Vec3| tangential(c, p, h).unwrap();
+        assert!((t(Vec3::NEG_Z) - 1.0).abs() < 1e-6);
+        assert!((t(Vec3::Z) + 1.0).abs() < 1e-6);
+        assert!(t(Vec3::NEG_X).abs() < 1e-6);
+        let diag = Vec3::new(-1.0, 0.0, -1.0).normalize();
+        assert!((t(diag) - std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-6);
+        assert!(tangential(c, Vec3::new(1.0, -1.0, 2.0), Vec3::X).is_none());
+        assert!(tangential(c, p, Vec3::Y).is_none());
+    }
+
+    /// Over 8 samples about the origin: fish 0 circles it counter-clockwise
+    /// (+1 each time); fish 1 circles it the other way (−1); fish 2 crosses
+    /// the cage heading +x at z = 1 from x = −3.5 to 3.5, whose tangential
+    /// part is 1/√(x² + 1) at each x (it passes the axis on one side only):
+    /// (2/√13.25 + 2/√7.25 + 2/√3.25 + 2/√1.25)/8 = 0.5238; fish 3 sits on
+    /// the axis and never counts. Own circling (1 + 1 + 0.5238)/3 = 0.8413;
+    /// over fish 0 and 1 alone 1, though they cancel in a mean about the axis.
+    #[test]
+    fn own_circling_by_hand() {
+        let mut c = Circling::new((0.0, 0.0), 4);
+        for k in 0..8 {
+            let a = TAU * k as f32 / 8.0;
+            let (ca, sa) = (a.cos(), a.sin());
+            let x = -3.5 + k as f32;
+            c.sample(
+                &[
+                    Vec3::new(2.0 * ca, -1.0, 2.0 * sa),
+                    Vec3::new(3.0 * ca, -1.0, 3.0 * sa),
+                    Vec3::new(x, -1.0, 1.0),
+                    Vec3::new(0.0, -1.0, 0.0),
+                ],
+                &[
+                    Vec3::new(sa, 0.0, -ca),
+                    Vec3::new(-sa, 0.0, ca),
+                    Vec3::X,
+                    Vec3::X,
+                ],
+            );
+        }
+        let crossing: f64 = [13.25f64, 7.25, 3.25, 1.25]
+            .iter()
+            .map(|r2| 2.0 / r2.sqrt())
+            .sum::<f64>()
+            / 8.0;
+        assert!((crossing - 0.5238).abs() < 1e-4, "{crossing}");
+        let want = ((2.0 + crossing) / 3.0) as f32;
+        assert!((want - 0.8413).abs() < 1e-4, "{want}");
+        assert!((c.own(0..4) - want).abs() < 1e-5, "{} {want}", c.own(0..4));
+        assert!((c.own(0..2) - 1.0).abs() < 1e-6);
+        assert!(c.own(3..4).is_nan());
     }
 
     /// Fish on a ring heading tangentially: M = 1, P ≈ 0.
@@ -783,6 +923,7 @@ mod tests {
             reward_per_decision: 1.0,
             turn_rate_deg_s: -29.7,
             clockwise_share: 0.0,
+            own_circling: 0.25,
             behaviours: vec![],
         };
         let json = serde_json::to_string(&s).unwrap();
@@ -792,9 +933,11 @@ mod tests {
         assert_eq!((back.turn_rate_deg_s, back.clockwise_share), (-29.7, 0.0));
         let old = json
             .replace(",\"nn_alignment\":null", "")
-            .replace(",\"turn_rate_deg_s\":-29.7", "");
+            .replace(",\"turn_rate_deg_s\":-29.7", "")
+            .replace(",\"own_circling\":0.25", "");
         let back: Summary = serde_json::from_str(&old).unwrap();
         assert!(back.nn_alignment.is_nan() && back.turn_rate_deg_s.is_nan());
+        assert!(back.own_circling.is_nan());
     }
 
     /// Fish 0 and 1 are each other's nearest, 60° apart (cos 0.5); fish 2's

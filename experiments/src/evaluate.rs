@@ -241,9 +241,10 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
         s.reward_per_decision
     );
     println!(
-        "turning {:+.1}°/s (+ clockwise seen from above) · {:.0} % of fish turn clockwise",
+        "turning {:+.1}°/s (+ clockwise seen from above) · {:.0} % of fish turn clockwise · own circling {:.2} (1: each fish circles the cage axis; 0: they wander)",
         s.turn_rate_deg_s,
-        100.0 * s.clockwise_share
+        100.0 * s.clockwise_share,
+        s.own_circling
     );
     if s.behaviours.len() > 1 {
         for b in &s.behaviours {

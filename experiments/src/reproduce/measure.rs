@@ -5,7 +5,7 @@
 use super::{Profile, Stage};
 use crate::evaluate::{EvalMeta, RunArgs, evaluate, write_outputs};
 use anyhow::{Context, Result};
-use deepfoids_env::metrics::Summary;
+use deepfoids_env::metrics::{Summary, tangential};
 use deepfoids_env::world::Chase;
 use deepfoids_env::{ConfigDirs, Env, GridFormat, Phase};
 use serde::{Deserialize, Serialize};
@@ -419,12 +419,7 @@ impl Acc {
                 let (rx, rz) = (p.x - self.centre.0, p.z - self.centre.1);
                 let r = (rx * rx + rz * rz).sqrt();
                 self.axis[b] += r as f64;
-                let h = w.heading[i];
-                let hn = (h.x * h.x + h.z * h.z).sqrt();
-                if r > 1e-6 && hn > 1e-6 {
-                    // Vertical component of r̂ × ĥ (horizontal parts):
-                    // positive counter-clockwise seen from above (y up).
-                    let c = (rz * h.x - rx * h.z) / (r * hn);
+                if let Some(c) = tangential(self.centre, p, w.heading[i]) {
                     rot += c as f64;
                 }
                 if tick.is_multiple_of(5) {
