@@ -40,6 +40,12 @@ def mean(xs):
     return sum(xs) / len(xs)
 
 
+def measured(ss, key):
+    """The mean of `key` over the summaries, "–" if any predates it."""
+    xs = [s[key] for s in ss if s.get(key) is not None]
+    return f"{mean(xs):.2f}" if len(xs) == len(ss) else "–"
+
+
 order = ["coho_default", "density_sparse", "density_dense"]
 print("| profile | scene | seeds | P | M | swarm / mill / polar / trans % | speed BL/s "
       "| NN BL | NN heading agreement | own circling | boundary /fish-h | neighbour /fish-h | reward /decision |")
@@ -50,15 +56,10 @@ for (run, scene) in sorted(rows, key=lambda k: (k[0], order.index(k[1]) if k[1] 
         f"{100 * mean([share(s, st) for s in ss]):.0f}"
         for st in ["swarm", "milling", "polarised", "transitional"])
 
-
-    def measured(key):
-        xs = [s[key] for s in ss if s.get(key) is not None]
-        return f"{mean(xs):.2f}" if len(xs) == len(ss) else "–"
-
     print(f"| {run} | {scene} | {len(ss)} | {mean([s['p_mean'] for s in ss]):.2f} "
           f"| {mean([s['m_mean'] for s in ss]):.2f} | {shares} "
           f"| {mean([s['mean_speed_bl'] for s in ss]):.2f} | {mean([s['nn_mean_bl'] for s in ss]):.2f} "
-          f"| {measured('nn_alignment')} | {measured('own_circling')} "
+          f"| {measured(ss, 'nn_alignment')} | {measured(ss, 'own_circling')} "
           f"| {mean([s['boundary_collisions_per_fish_hour'] for s in ss]):,.0f} "
           f"| {mean([s['neighbour_collisions_per_fish_hour'] for s in ss]):,.0f} "
           f"| {mean([s['reward_per_decision'] for s in ss]):.1f} |")

@@ -96,6 +96,13 @@ impl Cage {
             .fold(f32::INFINITY, f32::min)
     }
 
+    /// Where the cage's vertical axis crosses the horizontal plane, `(x, z)`:
+    /// the centre of its bounds.
+    pub fn axis(&self) -> (f32, f32) {
+        let (lo, hi) = self.bounds;
+        (0.5 * (lo.x + hi.x), 0.5 * (lo.z + hi.z))
+    }
+
     /// Half the narrowest horizontal width (m): how much room a fish has at most.
     pub fn inner_radius(&self) -> f32 {
         let (lo, hi) = self.bounds;

@@ -298,14 +298,15 @@ impl Circling {
     /// The mean over the fish of `range` of |their time-mean tangential
     /// heading|, in [0, 1]; NaN if none of them has a sample.
     pub fn own(&self, range: std::ops::Range<usize>) -> f32 {
-        let means: Vec<f64> = range
+        let (sum, fish) = range
             .filter(|&i| self.n[i] > 0)
-            .map(|i| (self.sum[i] / f64::from(self.n[i])).abs())
-            .collect();
-        if means.is_empty() {
+            .fold((0.0f64, 0u32), |(s, k), i| {
+                (s + (self.sum[i] / f64::from(self.n[i])).abs(), k + 1)
+            });
+        if fish == 0 {
             f32::NAN
         } else {
-            (means.iter().sum::<f64>() / means.len() as f64) as f32
+            (sum / f64::from(fish)) as f32
         }
     }
 }
@@ -474,10 +475,7 @@ impl Recorder {
             pending_boundary: 0,
             pending_neighbour: 0,
             turning: Turning::new(env.world().len()),
-            circling: Circling::new(
-                (0.5 * (lo.x + hi.x), 0.5 * (lo.z + hi.z)),
-                env.world().len(),
-            ),
+            circling: Circling::new(env.cage().axis(), env.world().len()),
             samples: Vec::new(),
         }
     }

@@ -385,7 +385,6 @@ struct Acc {
 
 impl Acc {
     fn new(env: &Env) -> Self {
-        let (lo, hi) = env.cage().bounds;
         let ranges: Vec<_> = env.behaviours().iter().map(|b| b.range()).collect();
         let nb = ranges.len();
         let chase_term = deepfoids_env::TERM_NAMES
@@ -393,7 +392,7 @@ impl Acc {
             .position(|t| *t == "chase")
             .expect("a chase term");
         Self {
-            centre: (0.5 * (lo.x + hi.x), 0.5 * (lo.z + hi.z)),
+            centre: env.cage().axis(),
             ranges,
             axis: vec![0.0; nb],
             rot: vec![0.0; nb],
@@ -417,7 +416,7 @@ impl Acc {
             for i in self.ranges[b].clone() {
                 let p = w.position[i];
                 let (rx, rz) = (p.x - self.centre.0, p.z - self.centre.1);
-                let r = (rx * rx + rz * rz).sqrt();
+                let r = rx.hypot(rz);
                 self.axis[b] += r as f64;
                 if let Some(c) = tangential(self.centre, p, w.heading[i]) {
                     rot += c as f64;
