@@ -356,15 +356,23 @@ pub struct BehaviourSummary {
     pub depth_edges: Vec<f32>,
     pub depth_share: Vec<f32>,
     pub mean_depth: f32,
-    /// The mean of the fish's turning rates about the vertical (deg/s, +
-    /// clockwise seen from above; [`Turning`]) and the share of fish turning
-    /// clockwise. Absent (NaN) in files written before they were measured.
+    /// How this behaviour's fish turn.
+    #[serde(flatten)]
+    pub turning: TurningSummary,
+}
+
+/// How fish turn about the vertical, in a summary's JSON beside its other
+/// fields. Each is absent (NaN) in files written before it was measured.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TurningSummary {
+    /// The mean of the fish's turning rates (deg/s, + clockwise seen from
+    /// above; [`Turning`]).
     #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub turn_rate_deg_s: f32,
+    /// The share of fish turning clockwise.
     #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub clockwise_share: f32,
-    /// [`Circling::own`] over this behaviour's fish. Absent (NaN) in files
-    /// written before it was measured.
+    /// [`Circling::own`] over the fish.
     #[serde(default = "nan", deserialize_with = "f32_or_nan")]
     pub own_circling: f32,
 }
@@ -405,15 +413,9 @@ pub struct Summary {
     pub neighbour_collisions_per_fish_hour: f64,
     pub mean_speed_bl: f32,
     pub reward_per_decision: f64,
-    /// As [`BehaviourSummary::turn_rate_deg_s`] and
-    /// [`BehaviourSummary::clockwise_share`], over every fish.
-    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
-    pub turn_rate_deg_s: f32,
-    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
-    pub clockwise_share: f32,
-    /// [`Circling::own`] over every fish.
-    #[serde(default = "nan", deserialize_with = "f32_or_nan")]
-    pub own_circling: f32,
+    /// How every fish turns.
+    #[serde(flatten)]
+    pub turning: TurningSummary,
     pub behaviours: Vec<BehaviourSummary>,
 }
 
@@ -575,6 +577,16 @@ impl Recorder {
         });
     }
 
+    /// How the fish in `range` turned, from every fish's turning `rates`.
+    fn turning_summary(&self, rates: &[f32], range: std::ops::Range<usize>) -> TurningSummary {
+        let (turn_rate_deg_s, clockwise_share) = Turning::stats(&rates[range.clone()]);
+        TurningSummary {
+            turn_rate_deg_s,
+            clockwise_share,
+            own_circling: self.circling.own(range),
+        }
+    }
+
     /// Totals over the run; `seconds` is the simulated time covered.
     pub fn summary(&self, seconds: f64) -> Summary {
         let s = &self.samples;
@@ -612,8 +624,6 @@ impl Recorder {
             .iter()
             .enumerate()
             .map(|(b, a)| {
-                let (turn_rate_deg_s, clockwise_share) =
-                    Turning::stats(&rates[self.ranges[b].clone()]);
                 let dec = a.decisions.max(1) as f64;
                 let hours = self.counts[b] as f64 * seconds / 3600.0;
                 let total: u64 = a.depth.iter().sum();
@@ -642,14 +652,11 @@ impl Recorder {
                         .map(|&c| c as f32 / total.max(1) as f32)
                         .collect(),
                     mean_depth: (a.depth_sum / a.speed_n.max(1) as f64) as f32,
-                    turn_rate_deg_s,
-                    clockwise_share,
-                    own_circling: self.circling.own(self.ranges[b].clone()),
+                    turning: self.turning_summary(&rates, self.ranges[b].clone()),
                 }
             })
             .collect();
         let decisions: u64 = self.acc.iter().map(|a| a.decisions).sum();
-        let (turn_rate_deg_s, clockwise_share) = Turning::stats(&rates);
         Summary {
             seconds,
             samples: s.len(),
@@ -672,9 +679,7 @@ impl Recorder {
             mean_speed_bl: mean(&|x| x.speed_bl),
             reward_per_decision: self.acc.iter().map(|a| a.reward).sum::<f64>()
                 / decisions.max(1) as f64,
-            turn_rate_deg_s,
-            clockwise_share,
-            own_circling: self.circling.own(0..fish),
+            turning: self.turning_summary(&rates, 0..fish),
             behaviours,
         }
     }
@@ -919,23 +924,29 @@ mod tests {
             neighbour_collisions_per_fish_hour: 0.0,
             mean_speed_bl: 1.5,
             reward_per_decision: 1.0,
-            turn_rate_deg_s: -29.7,
-            clockwise_share: 0.0,
-            own_circling: 0.25,
+            turning: TurningSummary {
+                turn_rate_deg_s: -29.7,
+                clockwise_share: 0.0,
+                own_circling: 0.25,
+            },
             behaviours: vec![],
         };
         let json = serde_json::to_string(&s).unwrap();
         assert!(json.contains("\"nn_alignment\":null"), "{json}");
         let back: Summary = serde_json::from_str(&json).unwrap();
         assert!(back.nn_mean_bl.is_nan() && back.nn_p05_bl.is_nan() && back.nn_alignment.is_nan());
-        assert_eq!((back.turn_rate_deg_s, back.clockwise_share), (-29.7, 0.0));
+        assert_eq!(
+            (back.turning.turn_rate_deg_s, back.turning.clockwise_share),
+            (-29.7, 0.0)
+        );
         let old = json
             .replace(",\"nn_alignment\":null", "")
             .replace(",\"turn_rate_deg_s\":-29.7", "")
             .replace(",\"own_circling\":0.25", "");
         let back: Summary = serde_json::from_str(&old).unwrap();
-        assert!(back.nn_alignment.is_nan() && back.turn_rate_deg_s.is_nan());
-        assert!(back.own_circling.is_nan());
+        assert!(back.nn_alignment.is_nan() && back.turning.turn_rate_deg_s.is_nan());
+        assert!(back.turning.own_circling.is_nan());
+        assert_eq!(back.turning.clockwise_share, 0.0);
     }
 
     /// Fish 0 and 1 are each other's nearest, 60° apart (cos 0.5); fish 2's

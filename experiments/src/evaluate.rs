@@ -242,9 +242,9 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
     );
     println!(
         "turning {:+.1}°/s (+ clockwise seen from above) · {:.0} % of fish turn clockwise · own circling {:.2} (1: each fish circles the cage axis; 0: they wander)",
-        s.turn_rate_deg_s,
-        100.0 * s.clockwise_share,
-        s.own_circling
+        s.turning.turn_rate_deg_s,
+        100.0 * s.turning.clockwise_share,
+        s.turning.own_circling
     );
     if s.behaviours.len() > 1 {
         for b in &s.behaviours {
@@ -255,7 +255,7 @@ pub fn print_table(meta: &EvalMeta<'_>, s: &Summary) {
                 b.m_mean,
                 b.mean_depth,
                 b.mean_speed_bl,
-                b.turn_rate_deg_s,
+                b.turning.turn_rate_deg_s,
                 b.reward_per_decision
             );
         }
