@@ -275,6 +275,13 @@ fn a_budget_per_fish_is_the_school_times_it() {
     ));
     let config = std::fs::read_to_string(runs.join("pf/config.toml")).unwrap();
     assert!(config.contains("seabream_regular = 300"), "{config}");
+    // The instruction set the kernels ran on: a seed reproduces bit for bit only on one.
+    let isa = deepfoids_learn::kernels::instruction_set();
+    assert!(["avx512", "avx2", "plain"].contains(&isa));
+    assert!(
+        config.contains(&format!("instruction_set = \"{isa}\"")),
+        "{config}"
+    );
     let state = json(&runs.join("pf/final/state.json"));
     assert_eq!(state["agent_steps"], 300, "{state}");
     cli_fails(

@@ -176,6 +176,10 @@ pub fn train_scene(
         run.insert("seed".into(), (opts.seed as i64).into());
         run.insert("steps".into(), budgets.clone().into());
         run.insert("backend".into(), opts.backend.as_str().into());
+        run.insert(
+            "instruction_set".into(),
+            deepfoids_learn::kernels::instruction_set().into(),
+        );
         if !init_from.is_empty() {
             let runs: Vec<toml::Value> = init_from
                 .iter()

@@ -87,6 +87,19 @@ pub mod geometry {
     const _: () = assert!((W_PAD - K1).is_multiple_of(S1) && (W1 - K2).is_multiple_of(S2));
 }
 
+/// The instruction set this machine's kernels run on: `"avx512"`, `"avx2"` or
+/// `"plain"` — the one [`sparse`]'s loops dispatch on and the one `gemm` picks
+/// for [`sgemm`] (both at run time, AVX-512 first). Seeded runs reproduce bit
+/// for bit only on one instruction set: the products sum in another order on
+/// another (docs/training.md, "Seeds"). A run records it in its `config.toml`.
+pub fn instruction_set() -> &'static str {
+    match sparse::isa() {
+        sparse::Isa::Avx512 => "avx512",
+        sparse::Isa::Avx2 => "avx2",
+        sparse::Isa::Plain => "plain",
+    }
+}
+
 /// `C ← A·B` (or `C ← C + A·B` with `accumulate`), A `[m, k]`, B `[k, n]`,
 /// C `[m, n]`, each given by its row and column strides, single-threaded
 /// (the callers split the work into tasks).
