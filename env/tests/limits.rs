@@ -127,31 +127,43 @@ fn species_site_and_reward_values_have_bounds() {
     }
 }
 
+/// The loading error of baseline `name` (`baselines/<name>.toml`) with `from`
+/// replaced by `to`, loaded by `load`.
+fn baseline_err<T, E: std::fmt::Display>(
+    tag: &str,
+    name: &str,
+    from: &str,
+    to: &str,
+    load: fn(&std::path::Path) -> Result<T, E>,
+) -> String {
+    let root = configs_with(tag, &format!("baselines/{name}.toml"), |t| {
+        assert!(t.contains(from), "{from} is not in {name}.toml");
+        t.replace(from, to)
+    });
+    match load(&ConfigDirs::new(&root).baseline(name).unwrap()) {
+        Ok(_) => panic!("{name}.toml with {to} loaded"),
+        Err(e) => e.to_string(),
+    }
+}
+
 #[test]
 fn baseline_parameters_have_bounds() {
-    let root = configs_with("foids", "baselines/foids.toml", |t| {
-        t.replace("night_speed = [0.0, 0.4]", "night_speed = [0.4, 0.0]")
-    });
-    let dirs = ConfigDirs::new(&root);
-    let e = FoidsConfig::load(&dirs.baseline("foids").unwrap())
-        .unwrap_err()
-        .to_string();
+    let foids = |tag, from, to| baseline_err(tag, "foids", from, to, FoidsConfig::load);
+    let e = foids(
+        "foids",
+        "night_speed = [0.0, 0.4]",
+        "night_speed = [0.4, 0.0]",
+    );
     assert!(e.contains("foids.toml") && e.contains("night_speed"), "{e}");
-    let root = configs_with("foids-nan", "baselines/foids.toml", |t| {
-        t.replace("hover_start = 0.01", "hover_start = nan")
-    });
-    let dirs = ConfigDirs::new(&root);
-    let e = FoidsConfig::load(&dirs.baseline("foids").unwrap())
-        .unwrap_err()
-        .to_string();
+    let e = foids("foids-nan", "hover_start = 0.01", "hover_start = nan");
     assert!(e.contains("hover_start") && e.contains("finite"), "{e}");
-    let root = configs_with("boids", "baselines/boids.toml", |t| {
-        t.replace("perception = 3.0", "perception = 1e9")
-    });
-    let dirs = ConfigDirs::new(&root);
-    let e = BoidsConfig::load(&dirs.baseline("boids").unwrap())
-        .unwrap_err()
-        .to_string();
+    let e = baseline_err(
+        "boids",
+        "boids",
+        "perception = 3.0",
+        "perception = 1e9",
+        BoidsConfig::load,
+    );
     assert!(
         e.contains("boids.toml: perception = 1e9 is above the limit of 100 BL"),
         "{e}"
