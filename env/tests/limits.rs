@@ -2,7 +2,7 @@
 //! bound, named with the file, field, value and bound; a value a scene
 //! overrides is blamed on the scene file.
 mod common;
-use common::{assert_mentions, configs_with, edit_err, load_err};
+use common::{assert_mentions, configs_edited, configs_with, edit_err, load_err};
 use deepfoids_env::baselines::{BoidsConfig, FoidsConfig};
 use deepfoids_env::{ConfigDirs, Phase, Scene};
 
@@ -136,10 +136,7 @@ fn baseline_err<T, E: std::fmt::Display>(
     to: &str,
     load: fn(&std::path::Path) -> Result<T, E>,
 ) -> String {
-    let root = configs_with(tag, &format!("baselines/{name}.toml"), |t| {
-        assert!(t.contains(from), "{from} is not in {name}.toml");
-        t.replace(from, to)
-    });
+    let root = configs_edited(tag, &format!("baselines/{name}.toml"), from, to);
     match load(&ConfigDirs::new(&root).baseline(name).unwrap()) {
         Ok(_) => panic!("{name}.toml with {to} loaded"),
         Err(e) => e.to_string(),

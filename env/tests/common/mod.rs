@@ -56,11 +56,15 @@ pub fn scene(id: &str, n: usize) -> Scene {
 /// The error loading `scene` from a copy of the configs (named `tag`) whose
 /// `file` has `from` replaced by `to` (`from` must be in the file).
 pub fn edit_err(tag: &str, file: &str, from: &str, to: &str, scene: &str) -> String {
-    let root = configs_with(tag, file, |t| {
+    load_err(&configs_edited(tag, file, from, to), scene)
+}
+
+/// The configuration with `from` replaced by `to` in `file` (which must hold it).
+pub fn configs_edited(tag: &str, file: &str, from: &str, to: &str) -> PathBuf {
+    configs_with(tag, file, |t| {
         assert!(t.contains(from), "`{from}` is not in {file}");
         t.replace(from, to)
-    });
-    load_err(&root, scene)
+    })
 }
 
 /// `e` mentions every one of `parts`.
