@@ -257,7 +257,7 @@ impl Sensing<'_> {
         let personal_bl = ext.personal_space_bl;
         let ahead_bl = ext.personal_space_ahead_bl;
         let misalignment = ext.personal_space_misalignment;
-        let mut counted = 0u32;
+        let (mut counted, mut eligible) = (0u32, 0u32);
         let mut nearest = Nearest::<MAX_NEIGHBOUR_CAP>::new();
         let (species, bl) = (w.species[i], w.bl[i]);
         self.grid.for_each_candidate_slot(p, range, |slot, j, q| {
@@ -281,6 +281,7 @@ impl Sensing<'_> {
                     1.0
                 };
             } else if !ext.conspecific_only || n.species == species {
+                eligible += 1;
                 let mut align = alignment(f, n.heading);
                 if ext.size_weighted {
                     align *= bl.min(n.bl) / bl.max(n.bl);
@@ -331,7 +332,9 @@ impl Sensing<'_> {
             }
             counted = nearest.len as u32;
         }
-        if counted > 0 {
+        if eligible < ext.neighbour_quorum {
+            seen.alignment_sum = 0.0;
+        } else if counted > 0 {
             match ext.neighbour_form {
                 NeighbourForm::Sum => {
                     let budget = ext.neighbour_budget;

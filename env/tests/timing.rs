@@ -5,7 +5,7 @@
 //! with the `thesis` profile's pretraining weights (`common::dirs`).
 mod common;
 use common::*;
-use deepfoids_env::config::{ActionTiming, NeighbourForm, RewardTiming};
+use deepfoids_env::config::{ActionTiming, NeighbourForm, RewardTiming, RewardWeights};
 use deepfoids_env::kinematics::angle_deg;
 use glam::Vec3;
 
@@ -328,23 +328,30 @@ fn personal_space_of_the_pair() {
 
 /// r_ND of fish 0 with the four neighbours of the thesis-sum test of
 /// rewards.rs (headings 0°, 30°, 60°, 90° off: terms 1, 2/3, 1/3, 0; two of
-/// them touch, so no kicks here) under `form` and a neighbour `budget`.
-fn four_neighbours_nd(form: NeighbourForm, budget: u32) -> f32 {
+/// them touch, so no kicks here), the transfer-phase weights edited by `edit`.
+fn four_neighbours_nd(edit: impl FnOnce(&mut RewardWeights)) -> f32 {
     let mut s = scene("seabream_default", 5);
-    s.rewards.extensions.neighbour_form = form;
-    s.rewards.extensions.neighbour_budget = budget;
+    edit(&mut s.rewards);
     s.rewards.contacts.kick = 0.0;
     s.rewards.contacts.push = 0.0;
     four_neighbours_terms(calm_env(s))[ND]
+}
+
+/// r_ND under `form` and a neighbour `budget`.
+fn formed_nd(form: NeighbourForm, budget: u32) -> f32 {
+    four_neighbours_nd(|r| {
+        r.extensions.neighbour_form = form;
+        r.extensions.neighbour_budget = budget;
+    })
 }
 
 /// The mean form: 1.5 · (1 + 2/3 + 1/3 + 0)/4 = 0.75; the sqrt form:
 /// 1.5 · 2/√4 = 1.5 (the sum itself is 3, rewards.rs).
 #[test]
 fn neighbour_mean_and_sqrt() {
-    let mean = four_neighbours_nd(NeighbourForm::Mean, 0);
+    let mean = formed_nd(NeighbourForm::Mean, 0);
     assert!(close(mean, 0.75, 2e-3), "{mean}");
-    let sqrt = four_neighbours_nd(NeighbourForm::Sqrt, 0);
+    let sqrt = formed_nd(NeighbourForm::Sqrt, 0);
     assert!(close(sqrt, 1.5, 2e-3), "{sqrt}");
 }
 
@@ -361,8 +368,32 @@ fn neighbour_budget_scales_the_sum() {
         (NeighbourForm::Sum, 90, 3.0),
         (NeighbourForm::Mean, 2, 0.75),
     ] {
-        let nd = four_neighbours_nd(form, budget);
+        let nd = formed_nd(form, budget);
         assert!(close(nd, want, 2e-3), "{form:?} budget {budget}: {nd}");
+    }
+}
+
+/// The quorum counts every neighbour r_ND would count, before the cap: with
+/// the four neighbours a quorum of 4 keeps the sum (3) and the mean of the
+/// two nearest under `neighbour_cap = 2` (headings 0° and 30° off, the two
+/// nearest: 1.5 · (1 + 2/3)/2 = 1.25); a quorum of 5 pays nothing, capped or
+/// not.
+#[test]
+fn neighbour_quorum_withholds_the_alignment_pay() {
+    for (cap, quorum, want) in [(0u32, 4u32, 3.0f32), (0, 5, 0.0), (2, 4, 1.25), (2, 5, 0.0)] {
+        let nd = four_neighbours_nd(|r| {
+            r.neighbour_cap = cap;
+            r.extensions.neighbour_form = if cap > 0 {
+                NeighbourForm::Mean
+            } else {
+                NeighbourForm::Sum
+            };
+            r.extensions.neighbour_quorum = quorum;
+        });
+        assert!(
+            close(nd, want, 2e-3),
+            "cap {cap} quorum {quorum}: {nd}, want {want}"
+        );
     }
 }
 

@@ -242,6 +242,15 @@ pub struct Extensions {
     /// (the mean alignment still pays; SPEC §6.2, a normalised r_ND). 0
     /// (default): no budget. Only the `sum` form uses it.
     pub neighbour_budget: u32,
+    /// A quorum for `r_ND`'s alignment pay: a fish with fewer than this many
+    /// neighbours that `r_ND` would count (within `d_sense`, outside the
+    /// personal space, of its species when `conspecific_only`; counted before
+    /// `neighbour_cap`) earns no alignment pay at that decision; the personal
+    /// space's price still applies. Quorum responses in shoals: Ward et al.
+    /// 2008, Sumpter et al. 2008; an ordered school forming at a critical
+    /// density: Makris et al. 2009. The number itself is not in the sources:
+    /// a tuning device (NOTES, session 62). 0 (default): off.
+    pub neighbour_quorum: u32,
     /// Assortment (Krause et al. 1996): `r_ND` counts only neighbours of the
     /// fish's own species. Default false.
     pub conspecific_only: bool,
@@ -285,6 +294,7 @@ impl Default for Extensions {
             personal_space_misalignment: 0.0,
             personal_space_penalty: 0.0,
             neighbour_budget: 0,
+            neighbour_quorum: 0,
             conspecific_only: false,
             size_weighted: false,
             boundary_ends_episode: true,
@@ -381,6 +391,13 @@ impl RewardWeights {
             r.extensions.neighbour_budget as u64,
             MAX_FISH as u64,
             "neighbours (0: no budget)",
+        )?;
+        check_count(
+            path,
+            "extensions.neighbour_quorum",
+            r.extensions.neighbour_quorum as u64,
+            MAX_FISH as u64,
+            "neighbours (0: off)",
         )?;
         check(
             path,
