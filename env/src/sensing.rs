@@ -257,7 +257,7 @@ impl Sensing<'_> {
         let personal_bl = ext.personal_space_bl;
         let ahead_bl = ext.personal_space_ahead_bl;
         let misalignment = ext.personal_space_misalignment;
-        let (mut counted, mut eligible) = (0u32, 0u32);
+        let mut eligible = 0u32;
         let mut nearest = Nearest::<MAX_NEIGHBOUR_CAP>::new();
         let (species, bl) = (w.species[i], w.bl[i]);
         self.grid.for_each_candidate_slot(p, range, |slot, j, q| {
@@ -294,7 +294,6 @@ impl Sensing<'_> {
                     if rewarded {
                         seen.rewarded_heading += n.heading;
                     }
-                    counted += 1;
                 } else {
                     nearest.offer(cap, d, align, n.heading);
                 }
@@ -325,13 +324,16 @@ impl Sensing<'_> {
             }
         });
         frame.add_spheres(self.sensor, &spheres);
-        if cap > 0 {
+        // The neighbours r_ND is paid for: every eligible one, or the `cap` nearest.
+        let counted = if cap > 0 {
             seen.alignment_sum = nearest.sum();
             if rewarded {
                 seen.rewarded_heading = nearest.heading_sum();
             }
-            counted = nearest.len as u32;
-        }
+            nearest.len as u32
+        } else {
+            eligible
+        };
         if eligible < ext.neighbour_quorum {
             seen.alignment_sum = 0.0;
         } else if counted > 0 {
